@@ -1,0 +1,12 @@
+//! terrasynth: synthesized terrain, real at coarse scale and detailed at any zoom.
+//!
+//! The library holds the synchronous, deterministic pipeline — [`raster`] (grids and files),
+//! [`analysis`] (terrain derivatives, flow routing, realism metrics), [`dictionary`] (multi-layer
+//! dictionaries of exemplar patches and matching), [`synth`] (one ×2 amplification level and level
+//! chains) — plus the command line's building blocks in [`cli`]. See `ARCHITECTURE.md`.
+#![deny(missing_docs)]
+
+pub mod analysis;
+pub mod dictionary;
+pub mod raster;
+pub mod synth;

@@ -1,0 +1,11 @@
+//! Rasters: grids on `ndarray::Array2<f32>` with a georeference (EPSG:4326 or EPSG:3857) and a
+//! nodata mask, multi-layer rasters, and the file formats terrasynth reads and writes (GeoTIFF,
+//! 16-bit PNG, OpenEXR). Nothing here does HTTP or async work.
+
+pub mod error;
+pub mod georef;
+pub mod grid;
+
+pub use error::RasterError;
+pub use georef::{CellSizes, Crs, Georef};
+pub use grid::{Grid, LayeredRaster, ELEVATION};

@@ -1,0 +1,2 @@
+//! Amplification: one ×2 level on a global lattice of primitives, level chains and residual
+//! correction.
