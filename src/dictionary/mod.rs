@@ -2,5 +2,8 @@
 //! versioned binary format, and matching of low-resolution input patches against them.
 
 pub mod atoms;
+pub mod features;
+pub mod matching;
 
 pub use atoms::{AtomSource, Dictionary, DictionaryParams, LayerInfo, LayerKind, Learning};
+pub use matching::{MatchWeights, Matcher};

@@ -1,0 +1,83 @@
+//! Chains of amplification levels: from a base field to any window of level `N`, computing at each
+//! level exactly the window the next one needs.
+
+use ndarray::Array2;
+
+use super::error::SynthError;
+use super::field::{Field, Window};
+use super::level::Amplifier;
+
+/// Reads a window of the base (level 0) plane. Implementations define the base everywhere on the
+/// plane (for example by clamping to a raster's edges), so that any window can be asked for.
+pub trait BaseSource: Sync {
+    /// The base field over `w`.
+    fn read(&self, w: Window) -> Result<Field, SynthError>;
+}
+
+/// A raster extended beyond its edges by repeating the nearest edge cell, as a base source.
+#[derive(Clone, Debug)]
+pub struct ClampedRaster<'a> {
+    /// Elevation values, row 0 north; must be finite.
+    pub elevation: &'a Array2<f32>,
+    /// Extra layers on the same grid.
+    pub layers: Vec<(String, &'a Array2<f32>)>,
+}
+
+impl ClampedRaster<'_> {
+    fn sample(a: &Array2<f32>, w: Window) -> Array2<f32> {
+        let (rows, cols) = a.dim();
+        let clamp = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
+        Array2::from_shape_fn((w.rows, w.cols), |(r, c)| {
+            a[[clamp(w.row0 + r as i64, rows), clamp(w.col0 + c as i64, cols)]]
+        })
+    }
+}
+
+impl BaseSource for ClampedRaster<'_> {
+    fn read(&self, w: Window) -> Result<Field, SynthError> {
+        let (rows, cols) = self.elevation.dim();
+        if rows == 0 || cols == 0 {
+            return Err(SynthError::BadWindow("the base raster is empty".into()));
+        }
+        Ok(Field {
+            window: w,
+            elevation: Self::sample(self.elevation, w),
+            layers: self
+                .layers
+                .iter()
+                .map(|(n, a)| (n.clone(), Self::sample(a, w)))
+                .collect(),
+        })
+    }
+}
+
+/// The windows each level must compute so that level `levels.len()` covers `out`:
+/// element 0 is the base window, the last is `out`.
+pub fn chain_windows(levels: &[Amplifier<'_>], out: Window) -> Vec<Window> {
+    let mut windows = vec![out];
+    for amp in levels.iter().rev() {
+        let next = amp.parent_window_for(windows[windows.len() - 1]);
+        windows.push(next);
+    }
+    windows.reverse();
+    windows
+}
+
+/// Amplifies `levels.len()` times: reads the base window the chain needs, then runs each level on
+/// the window the next needs, ending with `out` at the last level. `base_cell_m` is the metric cell
+/// size of level 0; each level halves it.
+pub fn amplify_chain(
+    levels: &[Amplifier<'_>],
+    base: &dyn BaseSource,
+    out: Window,
+    base_cell_m: f64,
+) -> Result<Field, SynthError> {
+    let windows = chain_windows(levels, out);
+    let mut field = base.read(windows[0])?;
+    let mut cell = base_cell_m;
+    for (amp, w) in levels.iter().zip(&windows[1..]) {
+        field = amp.amplify(&field, *w, cell as f32)?;
+        cell *= 0.5;
+    }
+    Ok(field)
+}

@@ -1,0 +1,406 @@
+//! One ×2 amplification level (DESIGN.md, methods 1 and 2).
+//!
+//! Level `L` is a pixel plane twice as fine as level `L−1`: pixel `x` of level `L` lies at parent
+//! coordinate `(x + 0.5)/2 − 0.5`, so the 2×2 block `{2k, 2k+1}²` sits on parent pixel `k`.
+//! Primitives stand on a *global* lattice of step `s = patch/2` (centre `c = s·i`, a pixel corner);
+//! primitive `i` reads the parent patch `[c/2 − patch/4, c/2 + patch/4)²`, matches it against the
+//! dictionary and reconstructs `P~ = (P_h·D_h,k) P_s D~_h,k + P_a` over `[c − s, c + s)²`, weighted
+//! by `α = (1 − r²)³`, `r = |p − c| / s`. Every pixel is covered by exactly 4 primitives and their
+//! contributions are added in lattice order, whatever window is requested, so a pixel's value does
+//! not depend on the window it is computed in (bit for bit). A residual correction then makes 2×2
+//! box averages reproduce the parent: one smooth pass (bilinear up-sampling of
+//! `F_{L−1} − Down(F_L)`) followed by one exact pass (nearest up-sampling of the remainder).
+
+use ndarray::{s, Array2};
+use rayon::prelude::*;
+
+use super::error::SynthError;
+use super::field::{Field, Window};
+use crate::dictionary::features::{box_down2, centre_normalise, patch_mean_slope};
+use crate::dictionary::matching::{unit_centred, MatchScratch, MatchWeights, Matcher, Query};
+use crate::dictionary::{Dictionary, LayerKind};
+
+/// Integer division rounding towards −∞.
+fn floor_div(a: i64, b: i64) -> i64 {
+    a.div_euclid(b)
+}
+
+/// The matched atom of one primitive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Primitive {
+    atom: usize,
+    /// `(P_h · D_h,k) · P_s`: the amplitude of the high-resolution atom.
+    coef: f32,
+    /// `P_a`: the mean altitude added back.
+    mean: f32,
+}
+
+/// The lattice rows and columns of the primitives that cover a hi-res window.
+#[derive(Clone, Copy, Debug)]
+struct LatticeRange {
+    i0: i64,
+    i1: i64,
+    j0: i64,
+    j1: i64,
+}
+
+/// One amplification level bound to a dictionary and matching weights.
+#[derive(Debug)]
+pub struct Amplifier<'d> {
+    matcher: Matcher<'d>,
+    dict: &'d Dictionary,
+    patch: usize,
+    step: usize,
+    /// `patch × patch` blending weights `α`.
+    alpha: Vec<f32>,
+    /// `step × step`: `1 / Σ α` at each pixel offset inside a lattice cell.
+    inv_norm: Vec<f32>,
+}
+
+impl<'d> Amplifier<'d> {
+    /// Prepares an amplifier. The dictionary's patch must be a multiple of 4 and at least 8.
+    pub fn new(dict: &'d Dictionary, weights: &MatchWeights) -> Result<Self, SynthError> {
+        let patch = dict.patch();
+        if patch < 8 || patch % 4 != 0 {
+            return Err(SynthError::PatchSize(patch));
+        }
+        let step = patch / 2;
+        let radius = step as f32;
+        let mut alpha = vec![0.0f32; patch * patch];
+        for r in 0..patch {
+            for c in 0..patch {
+                let dy = (r as f32 + 0.5 - radius) / radius;
+                let dx = (c as f32 + 0.5 - radius) / radius;
+                let r2 = dx * dx + dy * dy;
+                if r2 < 1.0 {
+                    let t = 1.0 - r2;
+                    alpha[r * patch + c] = t * t * t;
+                }
+            }
+        }
+        // A pixel at offset (oy, ox) of a lattice cell is covered by the four primitives that see
+        // it at patch offsets {oy, oy+step} × {ox, ox+step}; sum them in lattice order.
+        let mut inv_norm = vec![0.0f32; step * step];
+        for oy in 0..step {
+            for ox in 0..step {
+                let mut sum = 0.0f32;
+                for py in [oy + step, oy] {
+                    for px in [ox + step, ox] {
+                        sum += alpha[py * patch + px];
+                    }
+                }
+                inv_norm[oy * step + ox] = 1.0 / sum;
+            }
+        }
+        Ok(Amplifier {
+            matcher: Matcher::new(dict, weights)?,
+            dict,
+            patch,
+            step,
+            alpha,
+            inv_norm,
+        })
+    }
+
+    /// The dictionary this level uses.
+    pub fn dictionary(&self) -> &'d Dictionary {
+        self.dict
+    }
+
+    /// The parent pixels `[k0, k1)` under the hi-res span `[x0, x1)`.
+    fn parent_span(x0: i64, x1: i64) -> (i64, i64) {
+        (floor_div(x0, 2), floor_div(x1 + 1, 2))
+    }
+
+    /// The hi-res window on which the raw blend is needed for output window `out`: the children
+    /// of the parent pixels under `out`, widened by one parent pixel for bilinear up-sampling.
+    fn blend_window(out: Window) -> Window {
+        let (k0, k1) = Self::parent_span(out.col0, out.col1());
+        let (l0, l1) = Self::parent_span(out.row0, out.row1());
+        Window::from_bounds(2 * (k0 - 1), 2 * (l0 - 1), 2 * (k1 + 1), 2 * (l1 + 1))
+    }
+
+    /// Lattice indices of the primitives whose support `[c − step, c + step)` meets window `w`.
+    fn lattice_range(&self, w: Window) -> LatticeRange {
+        let s = self.step as i64;
+        // c + s > x0  ⇔  i > (x0 − s)/s ;  c − s ≤ x1 − 1  ⇔  i ≤ (x1 − 1 + s)/s.
+        LatticeRange {
+            i0: floor_div(w.col0 - s, s) + 1,
+            i1: floor_div(w.col1() - 1 + s, s) + 1,
+            j0: floor_div(w.row0 - s, s) + 1,
+            j1: floor_div(w.row1() - 1 + s, s) + 1,
+        }
+    }
+
+    /// The parent window that [`Amplifier::amplify`] needs to compute output window `out`.
+    pub fn parent_window_for(&self, out: Window) -> Window {
+        let bw = Self::blend_window(out);
+        let lr = self.lattice_range(bw);
+        let s = self.step as i64;
+        let q = (self.patch / 4) as i64;
+        let (k0, k1) = Self::parent_span(out.col0, out.col1());
+        let (l0, l1) = Self::parent_span(out.row0, out.row1());
+        let c0 = (lr.i0 * s / 2 - q).min(k0 - 1);
+        let c1 = ((lr.i1 - 1) * s / 2 + q).max(k1 + 1);
+        let r0 = (lr.j0 * s / 2 - q).min(l0 - 1);
+        let r1 = ((lr.j1 - 1) * s / 2 + q).max(l1 + 1);
+        Window::from_bounds(c0, r0, c1, r1)
+    }
+
+    /// Matches every primitive of `lr` against the dictionary, reading low patches from `parent`.
+    /// Results are in lattice order (row-major by `j`, then `i`).
+    fn match_primitives(
+        &self,
+        parent: &Field,
+        lr: LatticeRange,
+        parent_cell_m: f32,
+    ) -> Vec<Primitive> {
+        let lo = self.patch / 2;
+        let q = (self.patch / 4) as i64;
+        let s = self.step as i64;
+        let ni = (lr.i1 - lr.i0) as usize;
+        let nj = (lr.j1 - lr.j0) as usize;
+        let parent_layers: Vec<Option<(&Array2<f32>, bool)>> = self
+            .dict
+            .layers
+            .iter()
+            .map(|info| {
+                parent
+                    .layer(&info.name)
+                    .map(|a| (a, info.kind == LayerKind::Continuous))
+            })
+            .collect();
+        let pw = parent.window;
+        (0..nj * ni)
+            .into_par_iter()
+            .map_init(
+                || (MatchScratch::default(), vec![0.0f32; lo * lo], Query::default()),
+                |(scratch, raw, query), n| {
+                    let i = lr.i0 + (n % ni) as i64;
+                    let j = lr.j0 + (n / ni) as i64;
+                    let pc0 = (i * s / 2 - q - pw.col0) as usize;
+                    let pr0 = (j * s / 2 - q - pw.row0) as usize;
+                    let read = |a: &Array2<f32>, out: &mut [f32]| {
+                        for r in 0..lo {
+                            let row = a.row(pr0 + r);
+                            for c in 0..lo {
+                                out[r * lo + c] = row[pc0 + c];
+                            }
+                        }
+                    };
+                    read(&parent.elevation, raw);
+                    query.elevation.resize(lo * lo, 0.0);
+                    let (mean, norm) = centre_normalise(raw, &mut query.elevation);
+                    query.mean_alt = mean;
+                    query.mean_slope = patch_mean_slope(raw, lo, parent_cell_m);
+                    query.layers.clear();
+                    for pl in &parent_layers {
+                        match pl {
+                            Some((a, continuous)) => {
+                                let mut v = vec![0.0f32; lo * lo];
+                                read(a, &mut v);
+                                query
+                                    .layers
+                                    .push(if *continuous { unit_centred(&v) } else { v });
+                            }
+                            None => query.layers.push(Vec::new()),
+                        }
+                    }
+                    let (atom, dot) = self.matcher.best_match(query, scratch);
+                    Primitive {
+                        atom,
+                        coef: dot * norm,
+                        mean,
+                    }
+                },
+            )
+            .collect()
+    }
+
+    /// Blends the primitives over window `bw`: `acc[p] = Σ α·value / Σ α`, contributions added in
+    /// lattice order. `value(prim, offset)` gives the reconstructed value of a primitive at a
+    /// patch offset.
+    fn blend<F>(&self, bw: Window, lr: LatticeRange, prims: &[Primitive], value: F) -> Array2<f32>
+    where
+        F: Fn(&Primitive, usize) -> f32 + Sync,
+    {
+        let s = self.step as i64;
+        let p = self.patch;
+        let ni = (lr.i1 - lr.i0) as usize;
+        let mut flat = vec![0.0f32; bw.rows * bw.cols];
+        flat.par_chunks_mut(bw.cols.max(1))
+            .enumerate()
+            .for_each(|(r, row)| {
+                let y = bw.row0 + r as i64;
+                // The two primitive rows covering y: c_j ∈ (y − s, y + s].
+                let j_hi = floor_div(y + s, s);
+                for j in [j_hi - 1, j_hi] {
+                    if j < lr.j0 || j >= lr.j1 {
+                        continue;
+                    }
+                    let oy = (y - (j * s - s)) as usize;
+                    for i in lr.i0..lr.i1 {
+                        let prim = &prims[(j - lr.j0) as usize * ni + (i - lr.i0) as usize];
+                        let x_start = (i * s - s).max(bw.col0);
+                        let x_end = (i * s + s).min(bw.col1());
+                        for x in x_start..x_end {
+                            let ox = (x - (i * s - s)) as usize;
+                            let o = oy * p + ox;
+                            row[(x - bw.col0) as usize] += self.alpha[o] * value(prim, o);
+                        }
+                    }
+                }
+                let oy = y.rem_euclid(s) as usize;
+                for (c, v) in row.iter_mut().enumerate() {
+                    let ox = (bw.col0 + c as i64).rem_euclid(s) as usize;
+                    *v *= self.inv_norm[oy * self.step + ox];
+                }
+            });
+        Array2::from_shape_vec((bw.rows, bw.cols), flat).unwrap_or_default()
+    }
+
+    /// Amplifies window `out` of this level from `parent`, which must cover
+    /// [`Amplifier::parent_window_for`]`(out)`. `parent_cell_m` is the parent level's metric cell
+    /// size (used by the slope term). The result does not depend on anything but the parent's
+    /// values, the dictionary and `out`'s pixels: any window containing a pixel gives it the same
+    /// value, bit for bit.
+    pub fn amplify(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Field, SynthError> {
+        if out.is_empty() || out.len() > (1usize << 30) {
+            return Err(SynthError::BadWindow(format!("{out} has {} pixels", out.len())));
+        }
+        let needed = self.parent_window_for(out);
+        if !parent.window.contains(&needed) {
+            return Err(SynthError::ParentTooSmall {
+                given: parent.window.to_string(),
+                needed: needed.to_string(),
+            });
+        }
+        let parent = parent.crop(needed).ok_or(SynthError::ParentTooSmall {
+            given: parent.window.to_string(),
+            needed: needed.to_string(),
+        })?;
+        if parent.elevation.iter().any(|v| !v.is_finite()) {
+            return Err(SynthError::NonFinite);
+        }
+        let bw = Self::blend_window(out);
+        let lr = self.lattice_range(bw);
+        let prims = self.match_primitives(&parent, lr, parent_cell_m);
+        let p2 = self.patch * self.patch;
+        let dict = self.dict;
+        let blended = self.blend(bw, lr, &prims, |prim, o| {
+            prim.coef * dict.hi_elev[prim.atom * p2 + o] + prim.mean
+        });
+        let elevation = correct(&blended, bw, &parent.elevation, parent.window, out);
+        let nl = dict.layers.len();
+        let mut layers = Vec::with_capacity(nl);
+        for (l, info) in dict.layers.iter().enumerate() {
+            let raw = self.blend(bw, lr, &prims, |prim, o| {
+                dict.hi_layers[(prim.atom * nl + l) * p2 + o]
+            });
+            let field = match parent.layer(&info.name) {
+                Some(pl) => correct(&raw, bw, pl, parent.window, out),
+                None => crop(&raw, bw, out),
+            };
+            layers.push((info.name.clone(), field));
+        }
+        Ok(Field {
+            window: out,
+            elevation,
+            layers,
+        })
+    }
+}
+
+/// The part of `a` (held over `aw`) lying in `w`.
+fn crop(a: &Array2<f32>, aw: Window, w: Window) -> Array2<f32> {
+    let r0 = (w.row0 - aw.row0) as usize;
+    let c0 = (w.col0 - aw.col0) as usize;
+    a.slice(s![r0..r0 + w.rows, c0..c0 + w.cols]).to_owned()
+}
+
+/// 2×2 box average of the children of parent pixels `k` over window `kw`, read from `hi`
+/// (held over `hw`), in the same order as [`box_down2`].
+fn down_at(hi: &Array2<f32>, hw: Window, col: i64, row: i64) -> f32 {
+    let r = (2 * row - hw.row0) as usize;
+    let c = (2 * col - hw.col0) as usize;
+    (hi[[r, c]] + hi[[r, c + 1]] + hi[[r + 1, c]] + hi[[r + 1, c + 1]]) * 0.25
+}
+
+/// Residual correction of a raw blend `b` (held over the blend window `bw`) against the parent
+/// field `f` (held over `fw`), returning the corrected values over `out`.
+fn correct(b: &Array2<f32>, bw: Window, f: &Array2<f32>, fw: Window, out: Window) -> Array2<f32> {
+    let (k0, k1) = Amplifier::parent_span(out.col0, out.col1());
+    let (l0, l1) = Amplifier::parent_span(out.row0, out.row1());
+    let pv = |col: i64, row: i64| f[[(row - fw.row0) as usize, (col - fw.col0) as usize]];
+    // r1 over parent pixels [k0−1, k1+1) × [l0−1, l1+1).
+    let rw = Window::from_bounds(k0 - 1, l0 - 1, k1 + 1, l1 + 1);
+    let r1 = Array2::from_shape_fn((rw.rows, rw.cols), |(r, c)| {
+        let col = rw.col0 + c as i64;
+        let row = rw.row0 + r as i64;
+        pv(col, row) - down_at(b, bw, col, row)
+    });
+    // G = B + bilinear(r1) over the children of [k0, k1) × [l0, l1).
+    let gw = Window::from_bounds(2 * k0, 2 * l0, 2 * k1, 2 * l1);
+    let taps = |x: i64| -> (i64, f32, f32) {
+        // Child 2k sits at parent coordinate k − 1/4 (between k−1 and k), child 2k+1 at k + 1/4.
+        let k = floor_div(x, 2);
+        if x.rem_euclid(2) == 0 {
+            (k - 1, 0.25, 0.75)
+        } else {
+            (k, 0.75, 0.25)
+        }
+    };
+    let mut g = Array2::<f32>::zeros((gw.rows, gw.cols));
+    for r in 0..gw.rows {
+        let y = gw.row0 + r as i64;
+        let (ky, wy0, wy1) = taps(y);
+        let ry = (ky - rw.row0) as usize;
+        for c in 0..gw.cols {
+            let x = gw.col0 + c as i64;
+            let (kx, wx0, wx1) = taps(x);
+            let rx = (kx - rw.col0) as usize;
+            let up = wy0 * (wx0 * r1[[ry, rx]] + wx1 * r1[[ry, rx + 1]])
+                + wy1 * (wx0 * r1[[ry + 1, rx]] + wx1 * r1[[ry + 1, rx + 1]]);
+            let bv = b[[(y - bw.row0) as usize, (x - bw.col0) as usize]];
+            g[[r, c]] = bv + up;
+        }
+    }
+    // F = G + nearest(F_{L−1} − Down(G)) over out.
+    let mut res = Array2::<f32>::zeros((out.rows, out.cols));
+    for r in 0..out.rows {
+        let y = out.row0 + r as i64;
+        let ky = floor_div(y, 2);
+        for c in 0..out.cols {
+            let x = out.col0 + c as i64;
+            let kx = floor_div(x, 2);
+            let r2 = pv(kx, ky) - down_at(&g, gw, kx, ky);
+            res[[r, c]] = g[[(y - gw.row0) as usize, (x - gw.col0) as usize]] + r2;
+        }
+    }
+    res
+}
+
+/// The 2×2 box down-sampling used on inputs, exposed for callers that must reproduce exactly the
+/// filter the dictionary was built with.
+pub fn box_down_grid(hi: &Array2<f32>) -> Array2<f32> {
+    let (rows, cols) = (hi.nrows() / 2, hi.ncols() / 2);
+    let mut out = Array2::<f32>::zeros((rows, cols));
+    let mut block = [0.0f32; 4];
+    let mut one = [0.0f32; 1];
+    for r in 0..rows {
+        for c in 0..cols {
+            block[0] = hi[[2 * r, 2 * c]];
+            block[1] = hi[[2 * r, 2 * c + 1]];
+            block[2] = hi[[2 * r + 1, 2 * c]];
+            block[3] = hi[[2 * r + 1, 2 * c + 1]];
+            box_down2(&block, 2, &mut one);
+            out[[r, c]] = one[0];
+        }
+    }
+    out
+}
