@@ -7,6 +7,7 @@
 #![deny(missing_docs)]
 
 pub mod analysis;
+pub mod cli;
 pub mod dictionary;
 pub mod raster;
 pub mod synth;

@@ -1,1 +1,221 @@
-fn main() {}
+//! The `terrasynth` command: parses arguments and calls the library.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use terrasynth::cli::{amplify, build, crop, eval, CliError};
+use terrasynth::dictionary::build::BuildOptions;
+use terrasynth::dictionary::{Learning, MatchWeights};
+
+#[derive(Parser)]
+#[command(name = "terrasynth", version, about = "Synthesized terrain: amplify DEMs with dictionaries learned from real terrain")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Dictionaries of exemplar patches.
+    #[command(subcommand)]
+    Dictionary(DictionaryCommand),
+    /// Amplify a DEM by N ×2 levels.
+    Amplify(AmplifyCli),
+    /// Print JSON metrics of an amplified DEM against the truth, with bicubic and fBm baselines.
+    Eval(EvalCli),
+    /// Cut a window out of a GeoTIFF, optionally box-down-sampling it.
+    Crop(CropCli),
+}
+
+#[derive(Subcommand)]
+enum DictionaryCommand {
+    /// Build a dictionary from exemplar DEMs.
+    Build(BuildCli),
+}
+
+#[derive(Args)]
+struct BuildCli {
+    /// Exemplar DEM (GeoTIFF); repeat for several.
+    #[arg(long = "exemplar", value_name = "FILE")]
+    exemplars: Vec<PathBuf>,
+    /// Use the embedded Tien Shan exemplar.
+    #[arg(long)]
+    default: bool,
+    /// Extra layer on the exemplar's grid, NAME=FILE; repeat for several.
+    #[arg(long = "layer", value_name = "NAME=FILE", value_parser = parse_layer)]
+    layers: Vec<(String, PathBuf)>,
+    /// Output dictionary file.
+    #[arg(long, value_name = "DICT")]
+    output: PathBuf,
+    /// Number of atoms (0 = every patch).
+    #[arg(long, default_value_t = BuildOptions::default().atoms)]
+    atoms: usize,
+    /// High-resolution patch side in exemplar cells (multiple of 4).
+    #[arg(long, default_value_t = BuildOptions::default().patch)]
+    patch: usize,
+    /// Step between patches, exemplar cells.
+    #[arg(long, default_value_t = BuildOptions::default().stride)]
+    stride: usize,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = BuildOptions::default().seed)]
+    seed: u64,
+    /// Atom selection: `complete` or `medoids[:ITERATIONS]`.
+    #[arg(long, default_value = "medoids", value_parser = build::parse_learning)]
+    learning: Learning,
+    /// Keep a window COL,ROW,WIDTH,HEIGHT of the exemplar out of the dictionary; repeatable.
+    #[arg(long, value_name = "COL,ROW,WIDTH,HEIGHT")]
+    exclude: Vec<build::Exclusion>,
+    /// Do not add the derived layers (log_area, northness).
+    #[arg(long)]
+    no_derived: bool,
+}
+
+#[derive(Args)]
+struct AmplifyCli {
+    /// Dictionary file.
+    #[arg(long, value_name = "DICT")]
+    dictionary: PathBuf,
+    /// Low-resolution DEM (GeoTIFF).
+    #[arg(long, value_name = "LOW.tif")]
+    input: PathBuf,
+    /// Number of ×2 levels.
+    #[arg(long, default_value_t = 1)]
+    levels: u32,
+    /// Output GeoTIFF (extra layers are written to OUT.<layer>.tif).
+    #[arg(long, value_name = "OUT.tif")]
+    output: PathBuf,
+    /// Matching weights, e.g. `elevation=0.8,altitude=0.1,slope=0.1`.
+    #[arg(long, value_parser = amplify::parse_weights)]
+    weights: Option<MatchWeights>,
+}
+
+#[derive(Args)]
+struct EvalCli {
+    /// The real high-resolution terrain.
+    #[arg(long, value_name = "TRUTH.tif")]
+    truth: PathBuf,
+    /// The low-resolution input that was amplified.
+    #[arg(long, value_name = "LOW.tif")]
+    input: PathBuf,
+    /// The amplified result.
+    #[arg(long, value_name = "OUT.tif")]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct CropCli {
+    /// Input GeoTIFF.
+    #[arg(long)]
+    input: PathBuf,
+    /// Window COL,ROW,WIDTH,HEIGHT in input cells.
+    #[arg(long)]
+    window: build::Exclusion,
+    /// Box down-sampling factor after cropping.
+    #[arg(long, default_value_t = 1)]
+    down: usize,
+    /// Output GeoTIFF.
+    #[arg(long)]
+    output: PathBuf,
+}
+
+fn parse_layer(s: &str) -> Result<(String, PathBuf), String> {
+    let (name, file) = s
+        .split_once('=')
+        .ok_or_else(|| format!("`{s}`: expected NAME=FILE"))?;
+    Ok((name.to_string(), PathBuf::from(file)))
+}
+
+fn run_build(args: BuildCli) -> Result<(), CliError> {
+    let bar = ProgressBar::new(1000);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {msg:>16} [{bar:40}] {percent:>3}% {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let build_args = build::BuildArgs {
+        exemplars: args.exemplars,
+        default_exemplar: args.default,
+        layers: args.layers,
+        exclude: args.exclude,
+        options: BuildOptions {
+            patch: args.patch,
+            stride: args.stride,
+            atoms: args.atoms,
+            learning: args.learning,
+            seed: args.seed,
+        },
+        no_derived: args.no_derived,
+    };
+    let summary = build::run(&build_args, &args.output, &mut |stage, fraction| {
+        bar.set_message(stage.to_string());
+        bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    });
+    bar.finish_and_clear();
+    let summary = summary?;
+    println!(
+        "built {}: {} atoms, layers [{}], {:.1} s, {} bytes, id {}",
+        args.output.display(),
+        summary.atoms,
+        summary.layers.join(", "),
+        summary.seconds,
+        summary.bytes,
+        &summary.id[..16.min(summary.id.len())]
+    );
+    Ok(())
+}
+
+fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {
+        Command::Dictionary(DictionaryCommand::Build(args)) => run_build(args),
+        Command::Amplify(a) => {
+            let s = amplify::run(&amplify::AmplifyArgs {
+                dictionary: a.dictionary,
+                input: a.input,
+                levels: a.levels,
+                output: a.output,
+                weights: a.weights.unwrap_or_default(),
+            })?;
+            println!(
+                "amplified to {}×{} in {:.2} s: {}",
+                s.width,
+                s.height,
+                s.seconds,
+                s.files.join(", ")
+            );
+            Ok(())
+        }
+        Command::Eval(a) => {
+            let report = eval::run(&eval::EvalArgs {
+                truth: a.truth,
+                input: a.input,
+                output: a.output,
+            })?;
+            let json = serde_json::to_string_pretty(&report)
+                .map_err(|e| CliError::Usage(e.to_string()))?;
+            println!("{json}");
+            Ok(())
+        }
+        Command::Crop(a) => {
+            let g = crop::run(&crop::CropArgs {
+                input: a.input,
+                window: a.window,
+                down: a.down,
+                output: a.output.clone(),
+            })?;
+            println!("wrote {} ({}×{})", a.output.display(), g.cols(), g.rows());
+            Ok(())
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("terrasynth: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -3,6 +3,7 @@
 //! pure function of the parent values, the dictionary and the requested pixels: no caching, no
 //! HTTP, no dependence on thread count.
 
+pub mod baselines;
 pub mod chain;
 pub mod error;
 pub mod field;

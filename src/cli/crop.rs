@@ -1,0 +1,92 @@
+//! `terrasynth crop`: cut a pixel window out of a GeoTIFF and optionally box-down-sample it, to
+//! prepare held-out truth and low-resolution inputs for `eval`.
+
+use std::path::PathBuf;
+
+use ndarray::{s, Array2};
+
+use super::build::Exclusion;
+use super::error::CliError;
+use crate::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
+
+/// Arguments of `crop`.
+#[derive(Clone, Debug)]
+pub struct CropArgs {
+    /// Input GeoTIFF.
+    pub input: PathBuf,
+    /// Window `COL,ROW,WIDTH,HEIGHT` in input cells.
+    pub window: Exclusion,
+    /// Box down-sampling factor applied after cropping (1 = none; must divide the window).
+    pub down: usize,
+    /// Output GeoTIFF.
+    pub output: PathBuf,
+}
+
+/// Box average by `factor` (each output cell is the mean of a `factor × factor` block, summed
+/// row by row). `a`'s dimensions must be multiples of `factor`.
+pub fn box_down(a: &Array2<f32>, factor: usize) -> Array2<f32> {
+    let (rows, cols) = (a.nrows() / factor, a.ncols() / factor);
+    let inv = 1.0 / (factor * factor) as f32;
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let mut sum = 0.0f32;
+        for rr in 0..factor {
+            for cc in 0..factor {
+                sum += a[[r * factor + rr, c * factor + cc]];
+            }
+        }
+        sum * inv
+    })
+}
+
+/// Runs `crop`.
+pub fn run(args: &CropArgs) -> Result<Grid, CliError> {
+    let raster = read_raster_file(&args.input, None, &ReadLimits::default())?;
+    let grid = raster
+        .elevation()
+        .ok_or_else(|| CliError::Usage("the input has no elevation layer".into()))?;
+    let w = args.window;
+    if w.width == 0
+        || w.height == 0
+        || w.col + w.width > grid.cols()
+        || w.row + w.height > grid.rows()
+    {
+        return Err(CliError::Usage(format!(
+            "window {},{},{},{} does not fit the {}×{} input",
+            w.col,
+            w.row,
+            w.width,
+            w.height,
+            grid.cols(),
+            grid.rows()
+        )));
+    }
+    if args.down == 0 || w.width % args.down != 0 || w.height % args.down != 0 {
+        return Err(CliError::Usage(format!(
+            "--down {} must divide the window size {}×{}",
+            args.down, w.width, w.height
+        )));
+    }
+    let cut = Grid {
+        data: grid
+            .data
+            .slice(s![w.row..w.row + w.height, w.col..w.col + w.width])
+            .to_owned(),
+        georef: grid.georef.window(w.col as i64, w.row as i64),
+        valid: grid
+            .valid
+            .as_ref()
+            .map(|m| m.slice(s![w.row..w.row + w.height, w.col..w.col + w.width]).to_owned()),
+    };
+    cut.require_some_valid()?;
+    let out = if args.down > 1 {
+        let filled = cut.filled()?;
+        Grid::new(
+            box_down(&filled, args.down),
+            cut.georef.refined(1.0 / args.down as f64),
+        )
+    } else {
+        cut
+    };
+    write_geotiff_file(&out, &args.output)?;
+    Ok(out)
+}

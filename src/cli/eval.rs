@@ -1,0 +1,195 @@
+//! `terrasynth eval`: realism and fidelity metrics of an amplified DEM against the real terrain it
+//! should resemble, beside two baselines computed on the fly from the same low-resolution input:
+//! cell-centred bicubic, and bicubic plus slope-scaled fBm noise.
+
+use std::path::PathBuf;
+
+use ndarray::Array2;
+use serde::Serialize;
+
+use super::crop::box_down;
+use super::error::CliError;
+use crate::analysis;
+use crate::raster::{read_raster_file, CellSizes, Grid, ReadLimits};
+use crate::synth::baselines::{bicubic_upsample, fbm_upsample};
+
+/// Seed of the fBm baseline's noise.
+pub const FBM_SEED: u64 = 0x7e55_a5e1;
+
+/// Arguments of `eval`.
+#[derive(Clone, Debug)]
+pub struct EvalArgs {
+    /// The real high-resolution terrain.
+    pub truth: PathBuf,
+    /// The low-resolution input that was amplified.
+    pub input: PathBuf,
+    /// The amplified result.
+    pub output: PathBuf,
+}
+
+/// Metrics of one candidate against the truth.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Metrics {
+    /// Root-mean-square height error, metres.
+    pub rmse_m: f64,
+    /// 1-Wasserstein distance between slope distributions, degrees.
+    pub slope_wasserstein_deg: f64,
+    /// Energy in the band the down-sampling removed, relative to the truth's (1 = same).
+    pub band_energy_ratio: f64,
+    /// Flood extent, percent of cells.
+    pub flood_extent_pct: f64,
+    /// |flood extent − truth's flood extent|, percentage points.
+    pub flood_extent_error_pct: f64,
+    /// 1-Wasserstein distance between log10 D8 upstream-area distributions.
+    pub log_area_wasserstein: f64,
+    /// RMSE of the box-down-sampled candidate against the input, percent of the input's relief.
+    pub consistency_pct: f64,
+}
+
+/// The truth's own reference values.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TruthStats {
+    /// Flood extent of the truth, percent.
+    pub flood_extent_pct: f64,
+    /// Band energy of the truth.
+    pub band_energy: f64,
+    /// Relief (max − min) of the input, metres.
+    pub input_relief_m: f64,
+}
+
+/// The full report printed by `eval`.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EvalReport {
+    /// Up-sampling factor between input and truth.
+    pub factor: usize,
+    /// Truth reference values.
+    pub truth: TruthStats,
+    /// The amplified output.
+    pub amplified: Metrics,
+    /// Cell-centred bicubic baseline.
+    pub bicubic: Metrics,
+    /// Bicubic plus slope-scaled fBm baseline.
+    pub bicubic_fbm: Metrics,
+}
+
+/// Precomputed truth quantities shared by every candidate.
+struct Reference<'a> {
+    cells: &'a CellSizes,
+    input: &'a Array2<f32>,
+    input_relief: f64,
+    factor: usize,
+    slopes: Vec<f64>,
+    log_area: Vec<f64>,
+    flood: f64,
+    band: f64,
+    truth: &'a Array2<f32>,
+}
+
+fn band(z: &Array2<f32>, factor: usize) -> f64 {
+    analysis::band_energy(z, 0.5 / factor as f64, 0.5)
+}
+
+fn slopes_deg(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
+    analysis::slope_degrees(z, cells)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
+}
+
+fn log_areas(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
+    let filled = analysis::priority_flood_fill(z);
+    analysis::flow_accumulation_d8(&filled, cells)
+        .iter()
+        .map(|a| a.max(1.0).log10())
+        .collect()
+}
+
+fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
+    let flood = analysis::flood_extent(z);
+    let down = box_down(z, reference.factor);
+    let consistency = if reference.input_relief > 0.0 {
+        100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
+    } else {
+        0.0
+    };
+    Metrics {
+        rmse_m: analysis::rmse(z, reference.truth),
+        slope_wasserstein_deg: analysis::wasserstein1(&slopes_deg(z, reference.cells), &reference.slopes),
+        band_energy_ratio: if reference.band > 0.0 {
+            band(z, reference.factor) / reference.band
+        } else {
+            0.0
+        },
+        flood_extent_pct: flood,
+        flood_extent_error_pct: (flood - reference.flood).abs(),
+        log_area_wasserstein: analysis::wasserstein1(&log_areas(z, reference.cells), &reference.log_area),
+        consistency_pct: consistency,
+    }
+}
+
+/// Evaluates `output` (and the baselines computed from `input`) against `truth`. The three grids
+/// must cover the same extent, `truth` and `output` at the same resolution, `input` coarser by an
+/// integer factor.
+pub fn evaluate(truth: &Grid, input: &Grid, output: &Grid) -> Result<EvalReport, CliError> {
+    if truth.data.dim() != output.data.dim() {
+        return Err(CliError::Usage(format!(
+            "truth is {}×{} but output is {}×{}",
+            truth.cols(),
+            truth.rows(),
+            output.cols(),
+            output.rows()
+        )));
+    }
+    let factor = truth.cols() / input.cols().max(1);
+    if factor < 2 || input.cols() * factor != truth.cols() || input.rows() * factor != truth.rows()
+    {
+        return Err(CliError::Usage(format!(
+            "the input ({}×{}) must be the truth ({}×{}) down-sampled by an integer factor ≥ 2",
+            input.cols(),
+            input.rows(),
+            truth.cols(),
+            truth.rows()
+        )));
+    }
+    let truth_z = truth.filled()?;
+    let input_z = input.filled()?;
+    let output_z = output.filled()?;
+    let cells = truth.georef.cell_sizes(truth.rows());
+    let input_relief = analysis::relief(&input_z);
+    let reference = Reference {
+        cells: &cells,
+        input: &input_z,
+        input_relief,
+        factor,
+        slopes: slopes_deg(&truth_z, &cells),
+        log_area: log_areas(&truth_z, &cells),
+        flood: analysis::flood_extent(&truth_z),
+        band: band(&truth_z, factor),
+        truth: &truth_z,
+    };
+    let coarse_cell = input.georef.cell_sizes(input.rows()).mean_cell();
+    let bicubic = bicubic_upsample(&input_z, factor);
+    let fbm = fbm_upsample(&input_z, factor, coarse_cell, FBM_SEED);
+    Ok(EvalReport {
+        factor,
+        truth: TruthStats {
+            flood_extent_pct: reference.flood,
+            band_energy: reference.band,
+            input_relief_m: input_relief,
+        },
+        amplified: metrics(&reference, &output_z),
+        bicubic: metrics(&reference, &bicubic),
+        bicubic_fbm: metrics(&reference, &fbm),
+    })
+}
+
+/// Runs `eval`: reads the three files and evaluates.
+pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
+    let limits = ReadLimits::default();
+    let read = |p: &PathBuf| -> Result<Grid, CliError> {
+        read_raster_file(p, None, &limits)?
+            .elevation()
+            .ok_or_else(|| CliError::Usage(format!("{}: no elevation layer", p.display())))
+    };
+    evaluate(&read(&args.truth)?, &read(&args.input)?, &read(&args.output)?)
+}

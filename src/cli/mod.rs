@@ -1,0 +1,11 @@
+//! The command line's commands as library functions, so that they can be tested without a
+//! process: `dictionary build`, `amplify`, `eval` and `crop`. `src/main.rs` only parses arguments
+//! and calls these.
+
+pub mod amplify;
+pub mod build;
+pub mod crop;
+pub mod error;
+pub mod eval;
+
+pub use error::CliError;
