@@ -1,0 +1,126 @@
+//! Criterion benchmarks of the pipeline on deterministic real data (the embedded Tien Shan grid):
+//! matching (patches per second) and one amplification level (output points per second) with a
+//! warm default dictionary. Run with `cargo bench --bench pipeline`.
+
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use ndarray::{s, Array2};
+use terrasynth::dictionary::build::{build, BuildOptions, Exemplar};
+use terrasynth::dictionary::derive::derived_layers;
+use terrasynth::dictionary::features::centre_normalise;
+use terrasynth::dictionary::format::{read_dictionary, write_dictionary};
+use terrasynth::dictionary::matching::{best_match_naive, MatchScratch, Query};
+use terrasynth::dictionary::{Dictionary, MatchWeights, Matcher};
+use terrasynth::raster::embedded;
+use terrasynth::synth::{Amplifier, Field, Window};
+
+/// The default dictionary (embedded exemplar, default options, derived layers), cached under
+/// `target/` so that repeated bench runs do not rebuild it.
+fn default_dictionary(base: &Array2<f32>, cell_m: f64, derived: bool) -> Dictionary {
+    let name = if derived { "bench-default.dict" } else { "bench-elevation.dict" };
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target").join(name);
+    if let Ok(f) = std::fs::File::open(&path) {
+        if let Ok(d) = read_dictionary(std::io::BufReader::new(f), 1 << 32) {
+            return d;
+        }
+    }
+    let grid = embedded::tienshan().expect("embedded grid");
+    let layers = if derived {
+        derived_layers(base, &grid.georef.cell_sizes(grid.rows()))
+    } else {
+        Vec::new()
+    };
+    let ex = Exemplar {
+        elevation: base.clone(),
+        valid: None,
+        cell_m,
+        layers,
+    };
+    let d = build(&[ex], &BuildOptions::default(), &mut |_, _| {}).expect("build");
+    let mut bytes = Vec::new();
+    write_dictionary(&d, &mut bytes).expect("serialise");
+    let _ = std::fs::write(&path, bytes);
+    d
+}
+
+fn bench(c: &mut Criterion) {
+    let grid = embedded::tienshan().expect("embedded grid");
+    let base = grid.filled().expect("valid data");
+    let cell_m = grid.georef.cell_sizes(grid.rows()).mean_cell();
+    let weights = MatchWeights::default();
+
+    for derived in [false, true] {
+        let dict = default_dictionary(&base, cell_m, derived);
+        let label = if derived { "default" } else { "elevation-only" };
+
+        // Matching: low patches of the real terrain as queries.
+        let matcher = Matcher::new(&dict, &weights).expect("matcher");
+        let lo = dict.lo_patch();
+        let queries: Vec<Query> = (0..1024)
+            .map(|k| {
+                let (r, c) = (100 + (k / 32) * 53, 100 + (k % 32) * 79);
+                let raw: Vec<f32> = base
+                    .slice(s![r..r + lo, c..c + lo])
+                    .iter()
+                    .cloned()
+                    .collect();
+                let mut q = Query {
+                    elevation: vec![0.0; lo * lo],
+                    ..Query::default()
+                };
+                let (m, _) = centre_normalise(&raw, &mut q.elevation);
+                q.mean_alt = m;
+                q
+            })
+            .collect();
+        let mut g = c.benchmark_group(format!("matching/{label}"));
+        g.throughput(Throughput::Elements(queries.len() as u64));
+        g.bench_function("fast", |b| {
+            let mut scratch = MatchScratch::default();
+            b.iter(|| {
+                queries
+                    .iter()
+                    .map(|q| matcher.best_match(q, &mut scratch).0)
+                    .sum::<usize>()
+            })
+        });
+        g.bench_function("naive", |b| {
+            b.iter(|| {
+                queries
+                    .iter()
+                    .map(|q| best_match_naive(&matcher, q).0)
+                    .sum::<usize>()
+            })
+        });
+        g.finish();
+
+        // One amplification level: output windows of the real terrain.
+        let amp = Amplifier::new(&dict, &weights).expect("amplifier");
+        let mut g = c.benchmark_group(format!("amplify_level/{label}"));
+        for side in [256usize, 1024] {
+            let out = Window::new(1000, 1200, side, side);
+            let need = amp.parent_window_for(out);
+            let parent = Field::elevation_only(
+                need,
+                base.slice(s![
+                    need.row0 as usize..need.row0 as usize + need.rows,
+                    need.col0 as usize..need.col0 as usize + need.cols
+                ])
+                .to_owned(),
+            );
+            g.throughput(Throughput::Elements(out.len() as u64));
+            g.bench_with_input(BenchmarkId::from_parameter(side), &parent, |b, p| {
+                b.iter(|| amp.amplify(p, out, cell_m as f32).expect("amplify"))
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
+    targets = bench
+}
+criterion_main!(benches);

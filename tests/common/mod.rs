@@ -1,0 +1,50 @@
+//! Shared fixtures of the integration tests: synthetic terrain and small dictionaries.
+#![allow(dead_code)]
+
+use ndarray::Array2;
+use terrasynth::dictionary::build::{build, BuildOptions, Exemplar};
+use terrasynth::dictionary::{Dictionary, Learning};
+
+/// A deterministic ridged terrain: sums of rotated sinusoids with a hashed perturbation, metres.
+pub fn synthetic_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
+    let s = seed as f64 * 0.37;
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let (x, y) = (c as f64, r as f64);
+        let mut h = 800.0 + 3.0 * x - 2.0 * y;
+        for (k, (fx, fy, amp)) in [
+            (0.031, 0.017, 300.0),
+            (-0.052, 0.047, 140.0),
+            (0.11, -0.093, 60.0),
+            (0.23, 0.19, 25.0),
+            (-0.41, 0.37, 9.0),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let phase = s * (k as f64 + 1.0);
+            let v = (fx * x + fy * y + phase).sin();
+            // Ridged: 1 − |sin| makes sharp crests.
+            h += amp * (1.0 - 2.0 * v.abs());
+        }
+        h as f32
+    })
+}
+
+/// A small dictionary built from synthetic terrain (patch 16, stride 4, 64 atoms).
+pub fn small_dictionary(seed: u64) -> Dictionary {
+    let z = synthetic_terrain(160, 160, seed);
+    let ex = Exemplar {
+        elevation: z,
+        valid: None,
+        cell_m: 100.0,
+        layers: Vec::new(),
+    };
+    let opts = BuildOptions {
+        patch: 16,
+        stride: 4,
+        atoms: 64,
+        learning: Learning::Medoids { iterations: 3 },
+        seed,
+    };
+    build(&[ex], &opts, &mut |_, _| {}).expect("build a small dictionary")
+}
