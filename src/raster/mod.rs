@@ -3,9 +3,13 @@
 //! 16-bit PNG, OpenEXR). Nothing here does HTTP or async work.
 
 pub mod error;
+pub mod geotiff;
 pub mod georef;
 pub mod grid;
+pub mod limits;
 
 pub use error::RasterError;
+pub use geotiff::{read_geotiff, read_geotiff_file, write_geotiff, write_geotiff_file};
 pub use georef::{CellSizes, Crs, Georef};
 pub use grid::{Grid, LayeredRaster, ELEVATION};
+pub use limits::ReadLimits;
