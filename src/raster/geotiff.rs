@@ -247,8 +247,7 @@ fn georef_from_tags(
             }
             _ => {
                 return Err(RasterError::BadGeoreference(
-                    "no ModelPixelScale + ModelTiepoint and no ModelTransformation tag"
-                        .to_string(),
+                    "no ModelPixelScale + ModelTiepoint and no ModelTransformation tag".to_string(),
                 ))
             }
         };
@@ -540,10 +539,16 @@ pub fn write_geotiff<W: Write + Seek>(grid: &Grid, out: W) -> Result<(), RasterE
         .map_err(write_err)?;
     {
         let dir = image.encoder();
-        dir.write_tag(Tag::ModelPixelScaleTag, &[g.pixel_width, g.pixel_height, 0.0][..])
-            .map_err(write_err)?;
-        dir.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, g.west, g.north, 0.0][..])
-            .map_err(write_err)?;
+        dir.write_tag(
+            Tag::ModelPixelScaleTag,
+            &[g.pixel_width, g.pixel_height, 0.0][..],
+        )
+        .map_err(write_err)?;
+        dir.write_tag(
+            Tag::ModelTiepointTag,
+            &[0.0, 0.0, 0.0, g.west, g.north, 0.0][..],
+        )
+        .map_err(write_err)?;
         dir.write_tag(Tag::GeoKeyDirectoryTag, &geokey_directory(g.crs)[..])
             .map_err(write_err)?;
         if grid.valid.is_some() {

@@ -63,9 +63,7 @@ pub fn read_raster_file(
         })
     };
     match format {
-        RasterFormat::GeoTiff => Ok(LayeredRaster::from_elevation(read_geotiff(
-            &bytes, limits,
-        )?)),
+        RasterFormat::GeoTiff => Ok(LayeredRaster::from_elevation(read_geotiff(&bytes, limits)?)),
         RasterFormat::Png => Ok(LayeredRaster::from_elevation(read_png16(
             &bytes,
             need_hint("PNG")?,

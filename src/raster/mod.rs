@@ -3,8 +3,8 @@
 //! 16-bit PNG, OpenEXR). Nothing here does HTTP or async work.
 
 pub mod error;
-pub mod geotiff;
 pub mod georef;
+pub mod geotiff;
 pub mod grid;
 pub mod io;
 pub mod limits;
@@ -12,8 +12,8 @@ pub mod openexr;
 pub mod png16;
 
 pub use error::RasterError;
-pub use geotiff::{read_geotiff, read_geotiff_file, write_geotiff, write_geotiff_file};
 pub use georef::{CellSizes, Crs, Georef};
+pub use geotiff::{read_geotiff, read_geotiff_file, write_geotiff, write_geotiff_file};
 pub use grid::{Grid, LayeredRaster, ELEVATION};
 pub use io::{read_raster_file, sniff, write_raster_file, RasterFormat};
 pub use limits::ReadLimits;

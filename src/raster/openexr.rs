@@ -63,8 +63,8 @@ pub fn read_exr(
     if !bytes.starts_with(&EXR_MAGIC) {
         return Err(RasterError::UnknownFormat("no OpenEXR magic".to_string()));
     }
-    let meta =
-        exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(map_exr_error)?;
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
+        .map_err(map_exr_error)?;
     let header = match meta.headers.as_slice() {
         [one] => one,
         [] => return Err(malformed("no header")),

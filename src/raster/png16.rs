@@ -86,7 +86,8 @@ pub fn read_png16(bytes: &[u8], georef: Georef, limits: &ReadLimits) -> Result<G
         .chunks_exact(2)
         .map(|b| f32::from(u16::from_be_bytes([b[0], b[1]])))
         .collect();
-    let data = Array2::from_shape_vec((height, width), values).map_err(|e| malformed(e.to_string()))?;
+    let data =
+        Array2::from_shape_vec((height, width), values).map_err(|e| malformed(e.to_string()))?;
     Ok(Grid::new(data, georef))
 }
 
