@@ -4,8 +4,18 @@
 
 pub mod error;
 pub mod georef;
+pub mod geotiff;
 pub mod grid;
+pub mod io;
+pub mod limits;
+pub mod openexr;
+pub mod png16;
 
 pub use error::RasterError;
 pub use georef::{CellSizes, Crs, Georef};
+pub use geotiff::{read_geotiff, read_geotiff_file, write_geotiff, write_geotiff_file};
 pub use grid::{Grid, LayeredRaster, ELEVATION};
+pub use io::{read_raster_file, sniff, write_raster_file, RasterFormat};
+pub use limits::ReadLimits;
+pub use openexr::{read_exr, write_exr};
+pub use png16::{read_png16, write_png16};
