@@ -1,2 +1,52 @@
 //! Terrain analysis: slope, aspect, curvature, hillshade, priority-flood depression filling, D8
 //! and MFD flow accumulation, flood extent, spectra and realism metrics. Pure functions, no IO.
+//!
+//! Grids are `Array2<f32>` of shape `(rows, cols)`, row 0 north, column 0 west, with metric
+//! cell sizes per row from [`CellSizes`](crate::raster::CellSizes). Everything is
+//! deterministic: single-threaded, fixed summation orders, no global state. Empty, tiny (< 3×3)
+//! and NaN-containing grids never panic.
+//!
+//! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
+//! - [`hillshade`](mod@hillshade): ESRI/GDAL hillshade.
+//! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent.
+//! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
+//! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
+//! - [`spectrum`]: FFT and radial band energy.
+//! - [`naive`]: slow reference implementations for tests.
+
+mod common;
+pub mod derivatives;
+pub mod flood;
+pub mod flow;
+pub mod hillshade;
+pub mod metrics;
+pub mod naive;
+pub mod spectrum;
+
+use thiserror::Error;
+
+pub use common::next_up;
+pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
+pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
+pub use flow::{
+    d8_receivers, flow_accumulation_d8, flow_accumulation_from_receivers, flow_accumulation_mfd,
+    log_upstream_area, D8_NONE, D8_OFFSETS, MFD_EXPONENT,
+};
+pub use hillshade::{hillshade, hillshade_u8, DEFAULT_ALTITUDE_DEG, DEFAULT_AZIMUTH_DEG};
+pub use metrics::{box_down, relief, rmse, wasserstein1};
+pub use spectrum::{band_energy, dft_naive, fft, fft2, Complex};
+
+/// An error of an analysis function with preconditions on its arguments.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+pub enum AnalysisError {
+    /// The grid's dimensions are not multiples of the down-sampling factor (or it is 0).
+    #[error("a {rows}×{cols} grid cannot be box-averaged by a factor of {factor}")]
+    NotDivisible {
+        /// Grid rows.
+        rows: usize,
+        /// Grid columns.
+        cols: usize,
+        /// Requested factor.
+        factor: usize,
+    },
+}

@@ -1,0 +1,137 @@
+//! Local terrain derivatives on a 3×3 window: Horn's gradient, slope, aspect, northness and
+//! curvature (−Laplacian). Edge cells use replicated borders (the missing neighbour takes the
+//! value of the nearest cell inside the grid). NaN inputs propagate to every cell whose window
+//! contains them.
+
+use ndarray::Array2;
+
+use super::common::{row_sizes, values};
+use crate::raster::CellSizes;
+
+/// Horn (1981) gradient `(dz/dx eastwards, dz/dy northwards)` in m/m.
+///
+/// With the window `a b c / d e f / g h i` (row 0 north), the east derivative is the 1-2-1
+/// weighted mean of the three central differences `(c − a)/(2·dx[r−1])`, `(f − d)/(2·dx[r])`,
+/// `(i − g)/(2·dx[r+1])` (each row uses its own metric width, which reduces to Horn's
+/// `((c+2f+i) − (a+2d+g)) / 8dx` for uniform cells), and the north derivative is
+/// `((a+2b+c) − (g+2h+i)) / (2·(dy[r−1] + 2dy[r] + dy[r+1]))`, the difference divided by the
+/// weighted centre-to-centre distance (again Horn's `/8dy` for uniform cells). Row indices are
+/// clamped at the edges, like the values.
+pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
+    let (rows, cols) = z.dim();
+    let mut gx = Array2::<f32>::zeros((rows, cols));
+    let mut gy = Array2::<f32>::zeros((rows, cols));
+    if rows == 0 || cols == 0 {
+        return (gx, gy);
+    }
+    let v = values(z);
+    let (dx, dy) = row_sizes(cs, rows);
+    let (Some(gxs), Some(gys)) = (gx.as_slice_mut(), gy.as_slice_mut()) else {
+        return (gx, gy);
+    };
+    for r in 0..rows {
+        let rn = r.saturating_sub(1);
+        let rs = (r + 1).min(rows - 1);
+        let (north, mid, south) = (
+            &v[rn * cols..(rn + 1) * cols],
+            &v[r * cols..(r + 1) * cols],
+            &v[rs * cols..(rs + 1) * cols],
+        );
+        let ydist = 2.0 * (dy[rn] + 2.0 * dy[r] + dy[rs]);
+        for c in 0..cols {
+            let cw = c.saturating_sub(1);
+            let ce = (c + 1).min(cols - 1);
+            let (a, b, cc) = (north[cw] as f64, north[c] as f64, north[ce] as f64);
+            let (d, f) = (mid[cw] as f64, mid[ce] as f64);
+            let (g, h, i) = (south[cw] as f64, south[c] as f64, south[ce] as f64);
+            let ex = ((cc - a) / (2.0 * dx[rn])
+                + 2.0 * ((f - d) / (2.0 * dx[r]))
+                + (i - g) / (2.0 * dx[rs]))
+                / 4.0;
+            let ny = ((a + 2.0 * b + cc) - (g + 2.0 * h + i)) / ydist;
+            gxs[r * cols + c] = ex as f32;
+            gys[r * cols + c] = ny as f32;
+        }
+    }
+    (gx, gy)
+}
+
+/// Slope as the tangent of the steepest angle (m/m): `sqrt(gx² + gy²)` of [`gradient`].
+pub fn slope(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
+    let (gx, gy) = gradient(z, cs);
+    ndarray::Zip::from(&gx)
+        .and(&gy)
+        .map_collect(|&x, &y| ((x as f64).hypot(y as f64)) as f32)
+}
+
+/// Slope in degrees, `atan(`[`slope`]`)`, in [0, 90).
+pub fn slope_degrees(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
+    slope(z, cs).mapv(|s| (s as f64).atan().to_degrees() as f32)
+}
+
+/// Aspect: the compass direction (degrees clockwise from north) of the downslope direction the
+/// cell faces, in [0, 360). Exactly flat cells (zero gradient) get 0; NaN propagates.
+pub fn aspect(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
+    let (gx, gy) = gradient(z, cs);
+    ndarray::Zip::from(&gx).and(&gy).map_collect(|&x, &y| {
+        if x == 0.0 && y == 0.0 {
+            return 0.0;
+        }
+        // Downslope vector is (-gx east, -gy north); compass bearing = atan2(east, north).
+        let mut a = (-(x as f64)).atan2(-(y as f64)).to_degrees();
+        if a < 0.0 {
+            a += 360.0;
+        }
+        let a = a as f32 + 0.0; // + 0.0 turns -0.0 into 0.0
+        if a >= 360.0 {
+            0.0
+        } else {
+            a
+        }
+    })
+}
+
+/// Northness `cos(aspect)` in [−1, 1]: 1 on slopes facing (descending towards) north, −1 facing
+/// south, 0 on flat cells.
+pub fn northness(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
+    let (gx, gy) = gradient(z, cs);
+    ndarray::Zip::from(&gx).and(&gy).map_collect(|&x, &y| {
+        let s = (x as f64).hypot(y as f64);
+        if s == 0.0 {
+            0.0
+        } else {
+            (-(y as f64) / s).clamp(-1.0, 1.0) as f32
+        }
+    })
+}
+
+/// Curvature as the negative Laplacian in 1/m: positive on convex ridges and peaks, negative in
+/// valleys. Second differences `(z_w − 2z + z_e)/dx[r]²` and `(z_n − 2z + z_s)/dy[r]²` with
+/// replicated borders (so an edge cell sees a zero one-sided half of the stencil).
+pub fn curvature(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
+    let (rows, cols) = z.dim();
+    let mut out = Array2::<f32>::zeros((rows, cols));
+    if rows == 0 || cols == 0 {
+        return out;
+    }
+    let v = values(z);
+    let (dx, dy) = row_sizes(cs, rows);
+    let Some(os) = out.as_slice_mut() else {
+        return out;
+    };
+    for r in 0..rows {
+        let rn = r.saturating_sub(1);
+        let rs = (r + 1).min(rows - 1);
+        for c in 0..cols {
+            let cw = c.saturating_sub(1);
+            let ce = (c + 1).min(cols - 1);
+            let e = v[r * cols + c] as f64;
+            let zxx =
+                (v[r * cols + cw] as f64 - 2.0 * e + v[r * cols + ce] as f64) / (dx[r] * dx[r]);
+            let zyy =
+                (v[rn * cols + c] as f64 - 2.0 * e + v[rs * cols + c] as f64) / (dy[r] * dy[r]);
+            os[r * cols + c] = (-(zxx + zyy)) as f32;
+        }
+    }
+    out
+}

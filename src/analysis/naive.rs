@@ -1,0 +1,281 @@
+//! Straightforward reference implementations used to test the optimised ones: Planchon–Darboux
+//! depression filling, D8 accumulation by following receiver chains, MFD accumulation by
+//! repeated relaxation passes, a per-cell Horn gradient and a 2D DFT. They are slow (quadratic
+//! or worse) and meant for small grids only; they share conventions, not code, with the fast
+//! versions (except the 1D [`dft_naive`]).
+
+use ndarray::Array2;
+
+use super::spectrum::{dft_naive, Complex};
+use crate::raster::CellSizes;
+
+/// Size of row `r` from `v`, with the same fallbacks as the fast code (last row reused, 1 m
+/// when missing or invalid).
+fn size_at(v: &[f64], r: usize) -> f64 {
+    let s = if r < v.len() {
+        v[r]
+    } else if let Some(&l) = v.last() {
+        l
+    } else {
+        1.0
+    };
+    if s.is_finite() && s > 0.0 {
+        s
+    } else {
+        1.0
+    }
+}
+
+/// Value at `(r, c)` with coordinates clamped into the grid (replicated borders).
+fn clamped(z: &Array2<f32>, r: isize, c: isize) -> f64 {
+    let (rows, cols) = z.dim();
+    let rr = r.clamp(0, rows as isize - 1) as usize;
+    let cc = c.clamp(0, cols as isize - 1) as usize;
+    z[[rr, cc]] as f64
+}
+
+/// Horn gradient `(dz/dx east, dz/dy north)` computed cell by cell from the textbook formula
+/// (with per-row widths, see [`gradient`](super::gradient)).
+pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
+    let (rows, cols) = z.dim();
+    let mut gx = Array2::zeros((rows, cols));
+    let mut gy = Array2::zeros((rows, cols));
+    for r in 0..rows as isize {
+        for c in 0..cols as isize {
+            let rn = (r - 1).max(0) as usize;
+            let rs = (r + 1).min(rows as isize - 1) as usize;
+            let ru = r as usize;
+            let (dxn, dxm, dxs) = (
+                size_at(&cs.dx, rn),
+                size_at(&cs.dx, ru),
+                size_at(&cs.dx, rs),
+            );
+            let (dyn_, dym, dys) = (
+                size_at(&cs.dy, rn),
+                size_at(&cs.dy, ru),
+                size_at(&cs.dy, rs),
+            );
+            let z_ = |dr: isize, dc: isize| clamped(z, r + dr, c + dc);
+            let east = (z_(-1, 1) - z_(-1, -1)) / (2.0 * dxn) * 1.0
+                + (z_(0, 1) - z_(0, -1)) / (2.0 * dxm) * 2.0
+                + (z_(1, 1) - z_(1, -1)) / (2.0 * dxs) * 1.0;
+            let north_sum = z_(-1, -1) + 2.0 * z_(-1, 0) + z_(-1, 1);
+            let south_sum = z_(1, -1) + 2.0 * z_(1, 0) + z_(1, 1);
+            gx[[ru, c as usize]] = (east / 4.0) as f32;
+            gy[[ru, c as usize]] =
+                ((north_sum - south_sum) / (2.0 * (dyn_ + 2.0 * dym + dys))) as f32;
+        }
+    }
+    (gx, gy)
+}
+
+/// Planchon & Darboux (2001) style relaxation without ε: start from the border (and NaN cells)
+/// at their own height and every other cell at +∞, then repeatedly set
+/// `W = max(z, min over 8 neighbours of W)` (NaN neighbours count as −∞, i.e. outlets) until
+/// nothing changes. The fixed point is the minimal drained surface.
+pub fn fill_flat(z: &Array2<f32>) -> Array2<f32> {
+    let (rows, cols) = z.dim();
+    let mut w = z.clone();
+    if rows < 3 || cols < 3 {
+        return w;
+    }
+    for r in 1..rows - 1 {
+        for c in 1..cols - 1 {
+            if !z[[r, c]].is_nan() {
+                w[[r, c]] = f32::INFINITY;
+            }
+        }
+    }
+    loop {
+        let mut changed = false;
+        for r in 1..rows - 1 {
+            for c in 1..cols - 1 {
+                if z[[r, c]].is_nan() {
+                    continue;
+                }
+                let mut m = f32::INFINITY;
+                for dr in 0..3 {
+                    for dc in 0..3 {
+                        if dr == 1 && dc == 1 {
+                            continue;
+                        }
+                        let v = w[[r + dr - 1, c + dc - 1]];
+                        let v = if v.is_nan() { f32::NEG_INFINITY } else { v };
+                        if v < m {
+                            m = v;
+                        }
+                    }
+                }
+                let new = if z[[r, c]] > m { z[[r, c]] } else { m };
+                if new < w[[r, c]] {
+                    w[[r, c]] = new;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return w;
+        }
+    }
+}
+
+/// Neighbour list of a cell in the D8 order E, NE, N, NW, W, SW, S, SE with the metric
+/// centre distance and contour length of each direction (`None` outside the grid).
+fn neighbours(
+    rows: usize,
+    cols: usize,
+    cs: &CellSizes,
+    r: usize,
+    c: usize,
+) -> [Option<(usize, usize, f64, f64)>; 8] {
+    const DIRS: [(i64, i64); 8] = [
+        (0, 1),
+        (-1, 1),
+        (-1, 0),
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (1, 0),
+        (1, 1),
+    ];
+    let mut out = [None; 8];
+    for (k, &(dr, dc)) in DIRS.iter().enumerate() {
+        let (nr, nc) = (r as i64 + dr, c as i64 + dc);
+        if nr < 0 || nc < 0 || nr >= rows as i64 || nc >= cols as i64 {
+            continue;
+        }
+        let (nr, nc) = (nr as usize, nc as usize);
+        let (dx, dy) = (size_at(&cs.dx, r), size_at(&cs.dy, r));
+        let dxm = 0.5 * (dx + size_at(&cs.dx, nr));
+        let dym = 0.5 * (dy + size_at(&cs.dy, nr));
+        let (dist, contour) = if dr == 0 {
+            (dx, 0.5 * dy)
+        } else if dc == 0 {
+            (dym, 0.5 * dx)
+        } else {
+            (
+                (dxm * dxm + dym * dym).sqrt(),
+                0.25 * (dx * dx + dy * dy).sqrt(),
+            )
+        };
+        out[k] = Some((nr, nc, dist, contour));
+    }
+    out
+}
+
+/// D8 upstream area by brute force: every cell walks down its steepest-descent chain (chosen
+/// independently here, ties to the first direction) to a sink, adding its own area to every
+/// cell on the way.
+pub fn flow_accumulation_d8(filled: &Array2<f32>, cs: &CellSizes) -> Array2<f64> {
+    let (rows, cols) = filled.dim();
+    let receiver = |r: usize, c: usize| -> Option<(usize, usize)> {
+        let mut best: Option<(usize, usize)> = None;
+        let mut best_s = 0.0;
+        for (nr, nc, dist, _) in neighbours(rows, cols, cs, r, c).into_iter().flatten() {
+            let drop = filled[[r, c]] as f64 - filled[[nr, nc]] as f64;
+            if drop > 0.0 && drop / dist > best_s {
+                best_s = drop / dist;
+                best = Some((nr, nc));
+            }
+        }
+        best
+    };
+    let mut acc = Array2::zeros((rows, cols));
+    for r in 0..rows {
+        for c in 0..cols {
+            let a = size_at(&cs.dx, r) * size_at(&cs.dy, r);
+            let mut cur = (r, c);
+            acc[cur] += a;
+            for _ in 0..rows * cols {
+                match receiver(cur.0, cur.1) {
+                    Some(next) => {
+                        acc[next] += a;
+                        cur = next;
+                    }
+                    None => break,
+                }
+            }
+        }
+    }
+    acc
+}
+
+/// Fractions of a cell's flow sent to each neighbour direction under the Freeman/Quinn MFD
+/// rule (see [`flow_accumulation_mfd`](super::flow_accumulation_mfd)).
+fn mfd_fractions(
+    filled: &Array2<f32>,
+    cs: &CellSizes,
+    r: usize,
+    c: usize,
+    p: f64,
+) -> [Option<(usize, usize, f64)>; 8] {
+    let (rows, cols) = filled.dim();
+    let mut w = [None; 8];
+    let mut total = 0.0;
+    let mut count = 0;
+    for (k, nb) in neighbours(rows, cols, cs, r, c).into_iter().enumerate() {
+        if let Some((nr, nc, dist, contour)) = nb {
+            let drop = filled[[r, c]] as f64 - filled[[nr, nc]] as f64;
+            if drop > 0.0 {
+                let x = (drop / dist * contour).powf(p);
+                total += x;
+                count += 1;
+                w[k] = Some((nr, nc, x));
+            }
+        }
+    }
+    let ok = total > 0.0 && total.is_finite();
+    for (nr, nc, x) in w.iter_mut().flatten() {
+        let _ = (nr, nc);
+        *x = if ok { *x / total } else { 1.0 / count as f64 };
+    }
+    w
+}
+
+/// MFD upstream area by relaxation: `A(c) = area(c) + Σ_h A(h)·share(h → c)` over the higher
+/// neighbours `h`, recomputed for the whole grid until no value changes (at most one pass per
+/// cell on the longest flow path, plus one).
+pub fn flow_accumulation_mfd(filled: &Array2<f32>, cs: &CellSizes, exponent: f64) -> Array2<f64> {
+    let (rows, cols) = filled.dim();
+    let area = Array2::from_shape_fn((rows, cols), |(r, _)| {
+        size_at(&cs.dx, r) * size_at(&cs.dy, r)
+    });
+    let mut acc = area.clone();
+    for _ in 0..=rows * cols {
+        let mut next = area.clone();
+        for r in 0..rows {
+            for c in 0..cols {
+                for (nr, nc, share) in mfd_fractions(filled, cs, r, c, exponent)
+                    .into_iter()
+                    .flatten()
+                {
+                    next[[nr, nc]] += acc[[r, c]] * share;
+                }
+            }
+        }
+        if next == acc {
+            break;
+        }
+        acc = next;
+    }
+    acc
+}
+
+/// 2D DFT by applying the naive 1D DFT to every row and then every column.
+pub fn dft2(x: &Array2<Complex>, inverse: bool) -> Array2<Complex> {
+    let (rows, cols) = x.dim();
+    let mut out = x.clone();
+    for r in 0..rows {
+        let row: Vec<Complex> = (0..cols).map(|c| out[[r, c]]).collect();
+        for (c, v) in dft_naive(&row, inverse).into_iter().enumerate() {
+            out[[r, c]] = v;
+        }
+    }
+    for c in 0..cols {
+        let col: Vec<Complex> = (0..rows).map(|r| out[[r, c]]).collect();
+        for (r, v) in dft_naive(&col, inverse).into_iter().enumerate() {
+            out[[r, c]] = v;
+        }
+    }
+    out
+}
