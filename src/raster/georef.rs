@@ -117,10 +117,9 @@ impl Georef {
     pub fn latitude_of(&self, y: f64) -> f64 {
         match self.crs {
             Crs::Epsg4326 => y,
-            Crs::Epsg3857 => {
-                (2.0 * (y / MERCATOR_RADIUS_M).exp().atan() - std::f64::consts::FRAC_PI_2)
-                    .to_degrees()
-            }
+            Crs::Epsg3857 => (2.0 * (y / MERCATOR_RADIUS_M).exp().atan()
+                - std::f64::consts::FRAC_PI_2)
+                .to_degrees(),
         }
     }
 
@@ -133,10 +132,7 @@ impl Georef {
                 let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
                 (self.pixel_width * k * lat.cos(), self.pixel_height * k)
             }
-            Crs::Epsg3857 => (
-                self.pixel_width * lat.cos(),
-                self.pixel_height * lat.cos(),
-            ),
+            Crs::Epsg3857 => (self.pixel_width * lat.cos(), self.pixel_height * lat.cos()),
         }
     }
 
@@ -208,7 +204,10 @@ mod tests {
         };
         let (dx, dy) = g.cell_size_m(0.0);
         assert!((dy - 463.3).abs() < 1.0, "dy {dy}");
-        assert!((dx - 463.3 * 41f64.to_radians().cos()).abs() < 1.0, "dx {dx}");
+        assert!(
+            (dx - 463.3 * 41f64.to_radians().cos()).abs() < 1.0,
+            "dx {dx}"
+        );
     }
 
     #[test]
