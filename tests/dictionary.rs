@@ -298,8 +298,9 @@ fn invalid_cells_are_never_inside_atoms() {
         .sources
         .iter()
         .all(|s| !covers(s, 20, 30) && !covers(s, 50, 5)));
-    // 29×29 positions minus 4×4 around each bad cell.
-    assert_eq!(d.n_atoms, 29 * 29 - 16 - 16);
+    // 29×29 positions; (20, 30) lies in 4 row × 4 column positions, (50, 5) in 4 × 3 (columns
+    // 0, 2, 4).
+    assert_eq!(d.n_atoms, 29 * 29 - 16 - 12);
 }
 
 #[test]
@@ -311,10 +312,12 @@ fn complete_subset_is_evenly_spaced() {
         &mut quiet(),
     )
     .unwrap();
-    assert_eq!(all.n_atoms, 49);
+    // Positions 0, 8, ..., 56 on both axes.
+    assert_eq!(all.n_atoms, 64);
     let some = build(&[ex], &opts(8, 8, 7, Learning::Complete), &mut quiet()).unwrap();
     assert_eq!(some.n_atoms, 7);
-    let want: Vec<_> = (0..7).map(|i| all.sources[i * 7]).collect();
+    // ⌊i·64/7⌋ = 0, 9, 18, 27, 36, 45, 54.
+    let want: Vec<_> = [0, 9, 18, 27, 36, 45, 54].iter().map(|&i| all.sources[i]).collect();
     assert_eq!(some.sources, want);
 }
 
