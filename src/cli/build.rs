@@ -172,7 +172,7 @@ pub fn run(
     write_dictionary(&dict, &mut bytes)?;
     write_atomically(output, &bytes)?;
     Ok(BuildSummary {
-        id: content_id(&dict),
+        id: content_id(&dict)?,
         atoms: dict.n_atoms,
         layers: dict.layers.iter().map(|l| l.name.clone()).collect(),
         seconds: start.elapsed().as_secs_f64(),

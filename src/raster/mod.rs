@@ -2,6 +2,7 @@
 //! nodata mask, multi-layer rasters, and the file formats terrasynth reads and writes (GeoTIFF,
 //! 16-bit PNG, OpenEXR). Nothing here does HTTP or async work.
 
+pub mod embedded;
 pub mod error;
 pub mod georef;
 pub mod geotiff;
