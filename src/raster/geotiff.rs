@@ -599,7 +599,7 @@ mod tests {
     fn projected_model_type_selects_projected_code() {
         let keys = GeoKeys {
             model_type: Some(1),
-            projected: Some(900913),
+            projected: Some(3785),
             geographic: Some(4326),
             raster_type: None,
         };
