@@ -13,6 +13,9 @@ use crate::dictionary::{Dictionary, MatchWeights};
 use crate::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
 use crate::synth::{amplify_chain, Amplifier, ClampedRaster, Window};
 
+/// Extra layers by name.
+pub type NamedLayers = Vec<(String, Array2<f32>)>;
+
 /// Largest dictionary file read, bytes.
 pub const MAX_DICTIONARY_BYTES: u64 = 4 << 30;
 
@@ -62,7 +65,7 @@ pub fn amplify_grid(
     weights: &MatchWeights,
     grid: &Grid,
     levels: u32,
-) -> Result<(Grid, Vec<(String, Array2<f32>)>), CliError> {
+) -> Result<(Grid, NamedLayers), CliError> {
     if levels == 0 || levels > 8 {
         return Err(CliError::Usage(format!(
             "--levels {levels}: expected 1 to 8"
