@@ -340,7 +340,8 @@ fn cut_patches(
     for (e, (ex, (rows, cols))) in exemplars.iter().zip(&grids).enumerate() {
         for chunk in rows.chunks(ROWS_PER_CHUNK) {
             check_cancel(cancel)?;
-            let cuts: Vec<Option<(Vec<f32>, f32, f32, AtomSource)>> = chunk
+            // Collected in (row, col) order whatever the thread count.
+            let cuts: Vec<Option<(Cut, AtomSource)>> = chunk
                 .par_iter()
                 .flat_map_iter(|&r| cols.iter().map(move |&c| (r, c)))
                 .map(|(r, c)| {
@@ -350,14 +351,14 @@ fn cut_patches(
                             row: r as u32,
                             col: c as u32,
                         };
-                        (k.lo_norm, k.mean, k.relief, src)
+                        (k, src)
                     })
                 })
                 .collect();
-            for (v, m, s, src) in cuts.into_iter().flatten() {
-                out.vectors.extend_from_slice(&v);
-                out.mean.push(m);
-                out.relief.push(s);
+            for (k, src) in cuts.into_iter().flatten() {
+                out.vectors.extend_from_slice(&k.lo_norm);
+                out.mean.push(k.mean);
+                out.relief.push(k.relief);
                 out.sources.push(src);
             }
             done_rows += chunk.len();
