@@ -678,6 +678,50 @@ fn assemble(
 mod tests {
     use super::*;
 
+    // The transposed assignment kernel against a naive per-pair argmax (ties → lowest index),
+    // over more patches than one parallel chunk.
+    #[test]
+    fn assignment_kernel_matches_naive_argmax() {
+        let lo = 2;
+        let n = 1300;
+        let mut rng = Rng::new(3);
+        let mut vectors = Vec::new();
+        for _ in 0..n {
+            // Values on a coarse grid so exact ties happen.
+            vectors.extend((0..4).map(|_| rng.below(3) as f32 - 1.0));
+        }
+        let patches = Patches {
+            lo,
+            vectors,
+            mean: vec![0.0; n],
+            relief: vec![1.0; n],
+            sources: vec![
+                AtomSource {
+                    exemplar: 0,
+                    row: 0,
+                    col: 0
+                };
+                n
+            ],
+        };
+        let atoms = [5usize, 17, 5, 900, 42, 1299, 3];
+        let mut at = Vec::new();
+        transpose_atoms(&patches, &atoms, &mut at);
+        let (mut asg, mut best) = (vec![0u32; n], vec![0.0f32; n]);
+        assign(&patches, &at, atoms.len(), &mut asg, &mut best);
+        for p in 0..n {
+            let v = &patches.vectors[p * 4..p * 4 + 4];
+            let dots: Vec<f32> = atoms
+                .iter()
+                .map(|&a| (0..4).map(|i| v[i] * patches.vectors[a * 4 + i]).sum())
+                .collect();
+            let max = dots.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+            let want = dots.iter().position(|&d| d == max).unwrap_or(0);
+            assert_eq!(asg[p] as usize, want, "patch {p}: {dots:?}");
+            assert_eq!(best[p], max);
+        }
+    }
+
     #[test]
     fn evenly_spaced_indices() {
         assert_eq!(evenly_spaced(10, 5), vec![0, 2, 4, 6, 8]);
