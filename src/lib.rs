@@ -10,3 +10,4 @@ pub mod analysis;
 pub mod dictionary;
 pub mod raster;
 pub mod synth;
+pub mod tiles;
