@@ -11,3 +11,4 @@ pub mod cli;
 pub mod dictionary;
 pub mod raster;
 pub mod synth;
+pub mod tiles;

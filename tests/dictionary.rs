@@ -317,7 +317,10 @@ fn complete_subset_is_evenly_spaced() {
     let some = build(&[ex], &opts(8, 8, 7, Learning::Complete), &mut quiet()).unwrap();
     assert_eq!(some.n_atoms, 7);
     // ⌊i·64/7⌋ = 0, 9, 18, 27, 36, 45, 54.
-    let want: Vec<_> = [0, 9, 18, 27, 36, 45, 54].iter().map(|&i| all.sources[i]).collect();
+    let want: Vec<_> = [0, 9, 18, 27, 36, 45, 54]
+        .iter()
+        .map(|&i| all.sources[i])
+        .collect();
     assert_eq!(some.sources, want);
 }
 

@@ -340,7 +340,8 @@ fn cut_patches(
     for (e, (ex, (rows, cols))) in exemplars.iter().zip(&grids).enumerate() {
         for chunk in rows.chunks(ROWS_PER_CHUNK) {
             check_cancel(cancel)?;
-            let cuts: Vec<Option<(Vec<f32>, f32, f32, AtomSource)>> = chunk
+            // Collected in (row, col) order whatever the thread count.
+            let cuts: Vec<Option<(Cut, AtomSource)>> = chunk
                 .par_iter()
                 .flat_map_iter(|&r| cols.iter().map(move |&c| (r, c)))
                 .map(|(r, c)| {
@@ -350,14 +351,14 @@ fn cut_patches(
                             row: r as u32,
                             col: c as u32,
                         };
-                        (k.lo_norm, k.mean, k.relief, src)
+                        (k, src)
                     })
                 })
                 .collect();
-            for (v, m, s, src) in cuts.into_iter().flatten() {
-                out.vectors.extend_from_slice(&v);
-                out.mean.push(m);
-                out.relief.push(s);
+            for (k, src) in cuts.into_iter().flatten() {
+                out.vectors.extend_from_slice(&k.lo_norm);
+                out.mean.push(k.mean);
+                out.relief.push(k.relief);
                 out.sources.push(src);
             }
             done_rows += chunk.len();
@@ -676,6 +677,50 @@ fn assemble(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // The transposed assignment kernel against a naive per-pair argmax (ties → lowest index),
+    // over more patches than one parallel chunk.
+    #[test]
+    fn assignment_kernel_matches_naive_argmax() {
+        let lo = 2;
+        let n = 1300;
+        let mut rng = Rng::new(3);
+        let mut vectors = Vec::new();
+        for _ in 0..n {
+            // Values on a coarse grid so exact ties happen.
+            vectors.extend((0..4).map(|_| rng.below(3) as f32 - 1.0));
+        }
+        let patches = Patches {
+            lo,
+            vectors,
+            mean: vec![0.0; n],
+            relief: vec![1.0; n],
+            sources: vec![
+                AtomSource {
+                    exemplar: 0,
+                    row: 0,
+                    col: 0
+                };
+                n
+            ],
+        };
+        let atoms = [5usize, 17, 5, 900, 42, 1299, 3];
+        let mut at = Vec::new();
+        transpose_atoms(&patches, &atoms, &mut at);
+        let (mut asg, mut best) = (vec![0u32; n], vec![0.0f32; n]);
+        assign(&patches, &at, atoms.len(), &mut asg, &mut best);
+        for p in 0..n {
+            let v = &patches.vectors[p * 4..p * 4 + 4];
+            let dots: Vec<f32> = atoms
+                .iter()
+                .map(|&a| (0..4).map(|i| v[i] * patches.vectors[a * 4 + i]).sum())
+                .collect();
+            let max = dots.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+            let want = dots.iter().position(|&d| d == max).unwrap_or(0);
+            assert_eq!(asg[p] as usize, want, "patch {p}: {dots:?}");
+            assert_eq!(best[p], max);
+        }
+    }
 
     #[test]
     fn evenly_spaced_indices() {

@@ -9,8 +9,11 @@
 pub const MIN_RELIEF_M: f32 = 0.5;
 
 /// Down-samples a `side × side` row-major patch by 2×2 box averaging into `out`
-/// (`side/2 × side/2`): `out[r][c] = (hi[2r][2c] + hi[2r][2c+1] + hi[2r+1][2c] + hi[2r+1][2c+1])
-/// * 0.25`, summed in exactly that order.
+/// (`side/2 × side/2`), summing in exactly this order:
+///
+/// ```text
+/// out[r][c] = (hi[2r][2c] + hi[2r][2c+1] + hi[2r+1][2c] + hi[2r+1][2c+1]) * 0.25
+/// ```
 ///
 /// This is the single down-sampling filter of terrasynth: low-resolution atoms are built with it
 /// and the amplifier applies it to its inputs.
