@@ -597,38 +597,3 @@ fn nan_cells_are_outlets() {
     let _ = analysis::aspect(&all_nan, &cs);
     let _ = analysis::band_energy(&all_nan, 0.0, 0.5);
 }
-
-// ---------------------------------------------------------------------------------------------
-// Performance (run with `cargo test --release --test analysis -- --ignored --nocapture`)
-// ---------------------------------------------------------------------------------------------
-
-#[test]
-#[ignore = "timing on a 2000×2800 grid; run in release"]
-fn timing_full_size() {
-    let (rows, cols) = (2000, 2800);
-    let mut g = Lcg(1);
-    let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
-        (3000.0 + 500.0 * ((r as f64 / 150.0).sin() + (c as f64 / 170.0).cos()) + g.next() * 40.0)
-            as f32
-    });
-    let cs = CellSizes::uniform(rows, 90.0);
-    let t = std::time::Instant::now();
-    let f = analysis::priority_flood_fill(&z);
-    println!("priority_flood_fill: {:?}", t.elapsed());
-    let t = std::time::Instant::now();
-    let fe = analysis::flood_extent(&z);
-    println!("flood_extent: {:?} ({fe:.1}%)", t.elapsed());
-    let t = std::time::Instant::now();
-    let acc = analysis::flow_accumulation_d8(&f, &cs);
-    println!("flow_accumulation_d8: {:?}", t.elapsed());
-    let t = std::time::Instant::now();
-    let mfd = analysis::flow_accumulation_mfd(&f, &cs, MFD_EXPONENT);
-    println!("flow_accumulation_mfd: {:?}", t.elapsed());
-    let t = std::time::Instant::now();
-    let _ = analysis::slope(&z, &cs);
-    println!("slope: {:?}", t.elapsed());
-    let t = std::time::Instant::now();
-    let _ = analysis::band_energy(&z, 0.125, 0.5);
-    println!("band_energy: {:?}", t.elapsed());
-    assert!(acc.iter().all(|v| v.is_finite()) && mfd.iter().all(|v| v.is_finite()));
-}

@@ -522,20 +522,3 @@ fn learning_beats_a_random_subset() {
         assert_eq!(all.hi_atom(j), learned.hi_atom(i));
     }
 }
-
-// ---- Performance (run with `cargo test --release -- --ignored --nocapture`) ----
-
-#[test]
-#[ignore]
-fn default_build_of_a_large_exemplar_is_fast() {
-    let ex = [exemplar(2014, 2816)];
-    let t = std::time::Instant::now();
-    let d = build(&ex, &BuildOptions::default(), &mut quiet()).unwrap();
-    let secs = t.elapsed().as_secs_f64();
-    println!(
-        "default build of 2014×2816: {secs:.2} s, {} atoms",
-        d.n_atoms
-    );
-    assert_eq!(d.n_atoms, 256);
-    assert!(secs < 60.0);
-}
