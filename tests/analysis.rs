@@ -258,7 +258,8 @@ fn slope_of_plane_is_its_gradient() {
 #[test]
 fn aspect_and_northness_of_planes() {
     let cs = CellSizes::uniform(7, 10.0);
-    let cases: [(fn(f64, f64) -> f64, f32, f32); 4] = [
+    type PlaneCase = (fn(f64, f64) -> f64, f32, f32);
+    let cases: [PlaneCase; 4] = [
         (|x, _| -0.2 * x, 90.0, 0.0),  // descends to the east
         (|_, y| -0.2 * y, 0.0, 1.0),   // descends to the north
         (|x, _| 0.2 * x, 270.0, 0.0),  // descends to the west

@@ -177,3 +177,23 @@ pub fn flood_extent(z: &Array2<f32>) -> f64 {
         .fold(0usize, |acc, &f, &v| acc + usize::from(f > v));
     100.0 * wet as f64 / n as f64
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn single_pit_and_heap_entry_packing() {
+        let mut z = Array2::from_elem((4, 5), 3.0f32);
+        z[[1, 2]] = 1.0;
+        z[[2, 2]] = 2.0;
+        let flat = priority_flood_fill_flat(&z);
+        assert_eq!(flat, Array2::from_elem((4, 5), 3.0f32));
+        assert!((flood_extent(&z) - 10.0).abs() < 1e-12);
+        let eps = priority_flood_fill(&z);
+        assert!(eps[[1, 2]] > 3.0 && eps[[2, 2]] > 3.0);
+        assert!(eps[[1, 1]] > 3.0); // the flat interior also gets a drainage gradient
+        let e = <u64 as Entry>::make(0xDEAD_BEEF, 12345);
+        assert_eq!((e.key(), e.idx()), (0xDEAD_BEEF, 12345));
+    }
+}

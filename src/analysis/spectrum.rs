@@ -313,3 +313,43 @@ pub fn band_energy(z: &Array2<f32>, f_lo: f64, f_hi: f64) -> f64 {
     }
     e
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radix2_and_bluestein_match_naive_dft() {
+        for n in [1usize, 2, 3, 5, 8, 12, 17, 64, 100] {
+            let x: Vec<Complex> = (0..n)
+                .map(|i| Complex::new((i as f64 * 0.7).sin(), (i as f64 * 1.3).cos()))
+                .collect();
+            let mut f = x.clone();
+            fft(&mut f, false);
+            for (a, b) in f.iter().zip(dft_naive(&x, false)) {
+                assert!(a.sub(b).norm_sqr().sqrt() < 1e-10, "n = {n}");
+            }
+            fft(&mut f, true);
+            for (a, b) in f.iter().zip(&x) {
+                assert!(a.sub(*b).norm_sqr().sqrt() < 1e-12, "n = {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn band_energy_parseval() {
+        // The full band holds rows·cols·Σ x_w² (Parseval), corners beyond 0.5 included.
+        let z = Array2::from_shape_fn((6, 10), |(r, c)| ((r * 7 + c * 3) % 5) as f32);
+        let mean = z.iter().map(|&v| v as f64).sum::<f64>() / 60.0;
+        let (wr, wc) = (hann(6), hann(10));
+        let mut s = 0.0;
+        for ((r, c), &v) in z.indexed_iter() {
+            let x = (v as f64 - mean) * wr[r] * wc[c];
+            s += x * x;
+        }
+        let e = band_energy(&z, 0.0, 1.0);
+        assert!((e - 60.0 * s).abs() < 1e-9 * e.max(1.0));
+        assert_eq!(bin_freq(3, 6), 0.5);
+        assert_eq!(bin_freq(4, 6), -2.0 / 6.0);
+    }
+}
