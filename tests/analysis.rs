@@ -258,7 +258,8 @@ fn slope_of_plane_is_its_gradient() {
 #[test]
 fn aspect_and_northness_of_planes() {
     let cs = CellSizes::uniform(7, 10.0);
-    let cases: [(fn(f64, f64) -> f64, f32, f32); 4] = [
+    type PlaneCase = (fn(f64, f64) -> f64, f32, f32);
+    let cases: [PlaneCase; 4] = [
         (|x, _| -0.2 * x, 90.0, 0.0),  // descends to the east
         (|_, y| -0.2 * y, 0.0, 1.0),   // descends to the north
         (|x, _| 0.2 * x, 270.0, 0.0),  // descends to the west
@@ -403,9 +404,7 @@ fn d8_on_tilted_plane_sums_columns() {
     // Descends to the south; rows have different widths (as in EPSG:4326).
     let rows = 8;
     let cols = 5;
-    let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
-        1000.0 - 10.0 * r as f32 + 0.01 * c as f32 * 0.0
-    });
+    let z = Array2::from_shape_fn((rows, cols), |(r, _)| 1000.0 - 10.0 * r as f32);
     let cs = CellSizes {
         dx: (0..rows).map(|r| 20.0 + r as f64).collect(),
         dy: vec![25.0; rows],

@@ -139,3 +139,56 @@ pub(crate) fn order_key(x: f32) -> u32 {
         b | 0x8000_0000
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn next_up_matches_bit_increment() {
+        assert_eq!(next_up(1.0), f32::from_bits(1.0f32.to_bits() + 1));
+        assert_eq!(next_up(0.0), f32::from_bits(1));
+        assert_eq!(next_up(-0.0), f32::from_bits(1));
+        assert!(next_up(-1.0) > -1.0);
+        assert!(next_up(7000.0) > 7000.0 && next_up(7000.0) - 7000.0 < 1e-3);
+        assert_eq!(next_up(f32::INFINITY), f32::INFINITY);
+        assert!(next_up(f32::NAN).is_nan());
+        assert_eq!(next_up(f32::NEG_INFINITY), f32::MIN);
+    }
+
+    #[test]
+    fn order_key_is_monotone_with_nan_first() {
+        let v = [
+            f32::NEG_INFINITY,
+            -5.0,
+            -1e-30,
+            0.0,
+            1e-30,
+            3.0,
+            f32::INFINITY,
+        ];
+        for w in v.windows(2) {
+            assert!(order_key(w[0]) < order_key(w[1]));
+        }
+        assert!(order_key(f32::NAN) < order_key(f32::NEG_INFINITY));
+    }
+
+    #[test]
+    fn geometry_of_square_cells() {
+        let g = dir_geometry(&CellSizes::uniform(3, 2.0), 3);
+        let row = &g.dist[8..16];
+        assert_eq!(row[0], 2.0);
+        assert_eq!(row[2], 2.0);
+        assert!((row[1] - 8f64.sqrt()).abs() < 1e-15);
+        assert_eq!(g.contour[8], 1.0);
+        assert!((g.contour[9] - 0.25 * 8f64.sqrt()).abs() < 1e-15);
+        let (dx, dy) = row_sizes(
+            &CellSizes {
+                dx: vec![3.0],
+                dy: vec![],
+            },
+            2,
+        );
+        assert_eq!((dx, dy), (vec![3.0, 3.0], vec![1.0, 1.0]));
+    }
+}

@@ -11,7 +11,46 @@ use std::collections::{BinaryHeap, VecDeque};
 
 use ndarray::Array2;
 
-use super::common::{neighbour, next_up, order_key, values};
+use super::common::{neighbour, next_up, order_key, values, D8_OFFSETS};
+
+/// A heap entry ordering cells by (elevation key, row-major index).
+trait Entry: Ord + Copy {
+    fn make(key: u32, idx: usize) -> Self;
+    fn key(self) -> u32;
+    fn idx(self) -> usize;
+}
+
+/// Packed entry for grids of fewer than 2³² cells (the normal case): one `u64` compare.
+impl Entry for u64 {
+    #[inline]
+    fn make(key: u32, idx: usize) -> Self {
+        ((key as u64) << 32) | idx as u64
+    }
+    #[inline]
+    fn key(self) -> u32 {
+        (self >> 32) as u32
+    }
+    #[inline]
+    fn idx(self) -> usize {
+        (self & 0xFFFF_FFFF) as usize
+    }
+}
+
+/// Entry for grids of 2³² cells or more.
+impl Entry for (u32, usize) {
+    #[inline]
+    fn make(key: u32, idx: usize) -> Self {
+        (key, idx)
+    }
+    #[inline]
+    fn key(self) -> u32 {
+        self.0
+    }
+    #[inline]
+    fn idx(self) -> usize {
+        self.1
+    }
+}
 
 /// Shared Priority-Flood. `raise(c)` is the value a cell at or below the level of the cell `c`
 /// it is reached from is raised to: `c` itself (flat fill) or the next float above (ε fill).
@@ -23,24 +62,40 @@ use super::common::{neighbour, next_up, order_key, values};
 /// deterministic.
 fn flood(z: &Array2<f32>, raise: impl Fn(f32) -> f32) -> Array2<f32> {
     let (rows, cols) = z.dim();
-    let mut w: Vec<f32> = values(z).into_owned();
-    let n = w.len();
+    let w: Vec<f32> = values(z).into_owned();
     if rows < 3 || cols < 3 {
         return Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone());
     }
+    let w = if w.len() < (1usize << 32) {
+        flood_with::<u64>(w, rows, cols, raise)
+    } else {
+        flood_with::<(u32, usize)>(w, rows, cols, raise)
+    };
+    Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone())
+}
+
+fn flood_with<E: Entry>(
+    mut w: Vec<f32>,
+    rows: usize,
+    cols: usize,
+    raise: impl Fn(f32) -> f32,
+) -> Vec<f32> {
+    let n = w.len();
     let mut closed = vec![false; n];
-    let mut open: BinaryHeap<Reverse<(u32, usize)>> = BinaryHeap::new();
+    let mut open: BinaryHeap<Reverse<E>> = BinaryHeap::new();
     let mut pit: VecDeque<usize> = VecDeque::new();
     for (i, &v) in w.iter().enumerate() {
         let (r, c) = (i / cols, i % cols);
         if r == 0 || c == 0 || r == rows - 1 || c == cols - 1 || v.is_nan() {
             closed[i] = true;
-            open.push(Reverse((order_key(v), i)));
+            open.push(Reverse(E::make(order_key(v), i)));
         }
     }
+    let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
+    let mut nbrs = [0usize; 8];
     loop {
         let from_pit = match (pit.front(), open.peek()) {
-            (Some(&p), Some(Reverse((k, _)))) => order_key(w[p]) <= *k,
+            (Some(&p), Some(Reverse(e))) => order_key(w[p]) <= e.key(),
             (Some(_), None) => true,
             (None, Some(_)) => false,
             (None, None) => break,
@@ -52,32 +107,42 @@ fn flood(z: &Array2<f32>, raise: impl Fn(f32) -> f32) -> Array2<f32> {
             }
         } else {
             match open.pop() {
-                Some(Reverse((_, i))) => i,
+                Some(Reverse(e)) => e.idx(),
                 None => break,
             }
         };
         let (r, c) = (i / cols, i % cols);
-        let level = w[i];
-        let spill = raise(level);
-        for d in 0..8 {
-            let Some((nr, nc)) = neighbour(r, c, d, rows, cols) else {
-                continue;
-            };
-            let j = nr * cols + nc;
+        let count = if r > 0 && c > 0 && r < rows - 1 && c < cols - 1 {
+            for (k, o) in offsets.iter().enumerate() {
+                nbrs[k] = i.wrapping_add_signed(*o);
+            }
+            8
+        } else {
+            let mut k = 0;
+            for d in 0..8 {
+                if let Some((nr, nc)) = neighbour(r, c, d, rows, cols) {
+                    nbrs[k] = nr * cols + nc;
+                    k += 1;
+                }
+            }
+            k
+        };
+        let spill = raise(w[i]);
+        for &j in &nbrs[..count] {
             if closed[j] {
                 continue;
             }
             closed[j] = true;
-            // A NaN `level` (an outlet) compares false: the neighbour keeps its own value.
+            // A NaN `spill` (from an outlet) compares false: the neighbour keeps its value.
             if w[j] <= spill {
                 w[j] = spill;
                 pit.push_back(j);
             } else {
-                open.push(Reverse((order_key(w[j]), j)));
+                open.push(Reverse(E::make(order_key(w[j]), j)));
             }
         }
     }
-    Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone())
+    w
 }
 
 /// Priority-Flood+ε: fills every depression and imposes a tiny gradient on the filled flats
@@ -111,4 +176,24 @@ pub fn flood_extent(z: &Array2<f32>) -> f64 {
         .and(z)
         .fold(0usize, |acc, &f, &v| acc + usize::from(f > v));
     100.0 * wet as f64 / n as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn single_pit_and_heap_entry_packing() {
+        let mut z = Array2::from_elem((4, 5), 3.0f32);
+        z[[1, 2]] = 1.0;
+        z[[2, 2]] = 2.0;
+        let flat = priority_flood_fill_flat(&z);
+        assert_eq!(flat, Array2::from_elem((4, 5), 3.0f32));
+        assert!((flood_extent(&z) - 10.0).abs() < 1e-12);
+        let eps = priority_flood_fill(&z);
+        assert!(eps[[1, 2]] > 3.0 && eps[[2, 2]] > 3.0);
+        assert!(eps[[1, 1]] > 3.0); // the flat interior also gets a drainage gradient
+        let e = <u64 as Entry>::make(0xDEAD_BEEF, 12345);
+        assert_eq!((e.key(), e.idx()), (0xDEAD_BEEF, 12345));
+    }
 }

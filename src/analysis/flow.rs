@@ -9,12 +9,10 @@
 //! [`D8_NONE`] whose flow leaves the grid. NaN cells never receive flow but do count their own
 //! area, so the sink accumulations always add up to the total area.
 
-use std::cmp::Reverse;
-
 use ndarray::Array2;
 
 pub use super::common::D8_OFFSETS;
-use super::common::{dir_geometry, neighbour, order_key, row_areas, values};
+use super::common::{dir_geometry, neighbour, row_areas, values};
 use crate::raster::CellSizes;
 
 /// Receiver code of a sink (no strictly lower neighbour): its flow leaves the grid.
@@ -32,23 +30,39 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
     let z = values(filled);
     let geo = dir_geometry(cs, rows);
     let mut out = vec![D8_NONE; rows * cols];
+    let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
     for r in 0..rows {
+        let dist = &geo.dist[r * 8..r * 8 + 8];
+        let inner_row = r > 0 && r + 1 < rows;
         for c in 0..cols {
             let i = r * cols + c;
             let zi = z[i] as f64;
             let mut best = 0.0f64;
             let mut bd = D8_NONE;
-            for d in 0..8 {
-                let Some((nr, nc)) = neighbour(r, c, d, rows, cols) else {
-                    continue;
-                };
-                let drop = zi - z[nr * cols + nc] as f64;
-                // False for NaN on either side.
-                if drop > 0.0 {
-                    let s = drop / geo.dist[r * 8 + d];
-                    if s > best {
-                        best = s;
-                        bd = d as u8;
+            if inner_row && c > 0 && c + 1 < cols {
+                for d in 0..8 {
+                    let drop = zi - z[i.wrapping_add_signed(offsets[d])] as f64;
+                    // False for NaN on either side.
+                    if drop > 0.0 {
+                        let s = drop / dist[d];
+                        if s > best {
+                            best = s;
+                            bd = d as u8;
+                        }
+                    }
+                }
+            } else {
+                for (d, &dd) in dist.iter().enumerate() {
+                    let Some((nr, nc)) = neighbour(r, c, d, rows, cols) else {
+                        continue;
+                    };
+                    let drop = zi - z[nr * cols + nc] as f64;
+                    if drop > 0.0 {
+                        let s = drop / dd;
+                        if s > best {
+                            best = s;
+                            bd = d as u8;
+                        }
                     }
                 }
             }
@@ -162,8 +176,9 @@ fn mfd_shares(m: &Mfd<'_>, r: usize, c: usize, w: &mut [f64; 8]) -> bool {
 /// proportion to `(tanβ_d · L_d)^exponent`, where `tanβ_d` is drop/distance and `L_d` the contour
 /// length (half the perpendicular cell size for cardinal directions, a quarter of the cell
 /// diagonal for diagonals, i.e. Quinn's 0.5 and 0.354 for square cells). Cells are processed
-/// in decreasing elevation (ties by row-major index), so each cell is complete before it is
-/// distributed; O(n log n). Use [`MFD_EXPONENT`] (1.1) as the default exponent.
+/// in a topological order (a cell once all its strictly higher neighbours are done, Kahn's
+/// algorithm seeded in row-major order), so each cell is complete before it is distributed;
+/// O(n) and deterministic. Use [`MFD_EXPONENT`] (1.1) as the default exponent.
 pub fn flow_accumulation_mfd(filled: &Array2<f32>, cs: &CellSizes, exponent: f64) -> Array2<f64> {
     let (rows, cols) = filled.dim();
     let n = rows * cols;
@@ -171,8 +186,21 @@ pub fn flow_accumulation_mfd(filled: &Array2<f32>, cs: &CellSizes, exponent: f64
     let geo = dir_geometry(cs, rows);
     let areas = row_areas(cs, rows);
     let mut acc: Vec<f64> = (0..n).map(|i| areas[i / cols]).collect();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_unstable_by_key(|&i| (Reverse(order_key(z[i])), i));
+    // Kahn topological order: a cell is ready once all its strictly higher neighbours are done.
+    let mut indeg = vec![0u8; n];
+    for r in 0..rows {
+        for c in 0..cols {
+            let zi = z[r * cols + c];
+            for d in 0..8 {
+                if let Some((nr, nc)) = neighbour(r, c, d, rows, cols) {
+                    if z[nr * cols + nc] > zi {
+                        indeg[r * cols + c] += 1;
+                    }
+                }
+            }
+        }
+    }
+    let mut stack: Vec<usize> = (0..n).filter(|&i| indeg[i] == 0).rev().collect();
     let m = Mfd {
         z: &z,
         rows,
@@ -182,16 +210,23 @@ pub fn flow_accumulation_mfd(filled: &Array2<f32>, cs: &CellSizes, exponent: f64
         exponent,
     };
     let mut w = [0.0f64; 8];
-    for &i in &order {
+    while let Some(i) = stack.pop() {
         let (r, c) = (i / cols, i % cols);
-        if !mfd_shares(&m, r, c, &mut w) {
-            continue;
-        }
+        let sends = mfd_shares(&m, r, c, &mut w);
         let a = acc[i];
+        let zi = z[i];
         for (d, &share) in w.iter().enumerate() {
-            if share > 0.0 {
-                if let Some((nr, nc)) = neighbour(r, c, d, rows, cols) {
-                    acc[nr * cols + nc] += a * share;
+            let Some((nr, nc)) = neighbour(r, c, d, rows, cols) else {
+                continue;
+            };
+            let j = nr * cols + nc;
+            if z[j] < zi {
+                if sends && share > 0.0 {
+                    acc[j] += a * share;
+                }
+                indeg[j] -= 1;
+                if indeg[j] == 0 {
+                    stack.push(j);
                 }
             }
         }

@@ -95,3 +95,32 @@ pub fn box_down(a: &Array2<f32>, factor: usize) -> Result<Array2<f32>, AnalysisE
         (s / norm) as f32
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wasserstein_unequal_sizes_exact() {
+        // {0} vs {0, 1}: half the mass moves by 1.
+        assert_eq!(wasserstein1(&[0.0], &[0.0, 1.0]), 0.5);
+        assert_eq!(wasserstein1(&[2.0, f64::NAN], &[2.0]), 0.0);
+    }
+
+    #[test]
+    fn box_down_errors() {
+        let z = Array2::<f32>::zeros((3, 4));
+        assert_eq!(
+            box_down(&z, 2),
+            Err(AnalysisError::NotDivisible {
+                rows: 3,
+                cols: 4,
+                factor: 2
+            })
+        );
+        assert_eq!(
+            box_down(&Array2::<f32>::zeros((0, 0)), 3).map(|a| a.len()),
+            Ok(0)
+        );
+    }
+}

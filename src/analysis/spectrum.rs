@@ -68,121 +68,181 @@ impl Complex {
     }
 }
 
-/// In-place unnormalised forward radix-2 FFT; `data.len()` must be a power of two.
-fn fft_pow2(data: &mut [Complex]) {
-    let n = data.len();
-    if n <= 1 {
-        return;
+/// Twiddle table of a power-of-two length: `tw[k] = e^{−2πik/n}`, `k < n/2`.
+struct Radix2 {
+    n: usize,
+    tw: Vec<Complex>,
+}
+
+impl Radix2 {
+    fn new(n: usize) -> Self {
+        let tw = (0..n / 2)
+            .map(|k| Complex::cis(-2.0 * PI * k as f64 / n as f64))
+            .collect();
+        Radix2 { n, tw }
     }
-    let bits = n.trailing_zeros();
-    for i in 0..n {
-        let j = i.reverse_bits() >> (usize::BITS - bits);
-        if j > i {
-            data.swap(i, j);
+
+    /// In-place unnormalised forward FFT; `data.len()` must equal `self.n` (a power of two).
+    fn run(&self, data: &mut [Complex]) {
+        let n = self.n;
+        if n <= 1 || data.len() != n {
+            return;
         }
-    }
-    let tw: Vec<Complex> = (0..n / 2)
-        .map(|k| Complex::cis(-2.0 * PI * k as f64 / n as f64))
-        .collect();
-    let mut len = 2;
-    while len <= n {
-        let half = len / 2;
-        let step = n / len;
-        for start in (0..n).step_by(len) {
-            for k in 0..half {
-                let u = data[start + k];
-                let v = data[start + k + half].mul(tw[k * step]);
-                data[start + k] = u.add(v);
-                data[start + k + half] = u.sub(v);
+        let bits = n.trailing_zeros();
+        for i in 0..n {
+            let j = i.reverse_bits() >> (usize::BITS - bits);
+            if j > i {
+                data.swap(i, j);
             }
         }
-        len *= 2;
+        let mut len = 2;
+        while len <= n {
+            let half = len / 2;
+            let step = n / len;
+            for start in (0..n).step_by(len) {
+                for k in 0..half {
+                    let u = data[start + k];
+                    let v = data[start + k + half].mul(self.tw[k * step]);
+                    data[start + k] = u.add(v);
+                    data[start + k + half] = u.sub(v);
+                }
+            }
+            len *= 2;
+        }
     }
 }
 
-/// Bluestein: forward DFT of any length via a power-of-two circular convolution.
-fn fft_bluestein(data: &mut [Complex]) {
-    let n = data.len();
-    let m = (2 * n - 1).next_power_of_two();
-    // chirp[k] = e^{−iπk²/n}; k² is reduced mod 2n in integers to keep the angle small.
-    let two_n = 2 * n as u128;
-    let chirp: Vec<Complex> = (0..n)
-        .map(|k| {
-            let k2 = ((k as u128 * k as u128) % two_n) as f64;
-            Complex::cis(-PI * k2 / n as f64)
-        })
-        .collect();
-    let mut a = vec![Complex::default(); m];
-    for k in 0..n {
-        a[k] = data[k].mul(chirp[k]);
-    }
-    let mut b = vec![Complex::default(); m];
-    b[0] = chirp[0].conj();
-    for k in 1..n {
-        b[k] = chirp[k].conj();
-        b[m - k] = chirp[k].conj();
-    }
-    fft_pow2(&mut a);
-    fft_pow2(&mut b);
-    for (x, y) in a.iter_mut().zip(&b) {
-        *x = x.mul(*y);
-    }
-    // Inverse FFT of length m by conjugation.
-    for x in a.iter_mut() {
-        *x = x.conj();
-    }
-    fft_pow2(&mut a);
-    let inv_m = 1.0 / m as f64;
-    for k in 0..n {
-        data[k] = a[k].conj().scale(inv_m).mul(chirp[k]);
-    }
+/// A precomputed FFT of one length: radix-2 for powers of two, Bluestein's chirp-z otherwise.
+enum Plan {
+    /// Length 0 or 1: the identity.
+    Trivial,
+    /// Power of two.
+    Radix2(Radix2),
+    /// Any other length `n`, as a circular convolution of power-of-two length `m ≥ 2n − 1`.
+    Bluestein {
+        n: usize,
+        inner: Radix2,
+        /// `e^{−iπk²/n}`, `k < n`.
+        chirp: Vec<Complex>,
+        /// FFT of the conjugate chirp laid out circularly.
+        bfft: Vec<Complex>,
+    },
 }
 
-/// In-place FFT of any length (radix-2 for powers of two, Bluestein otherwise). With
-/// `inverse` the result is scaled by `1/N`.
-pub fn fft(data: &mut [Complex], inverse: bool) {
-    let n = data.len();
-    if n <= 1 {
-        return;
+impl Plan {
+    fn new(n: usize) -> Self {
+        if n <= 1 {
+            return Plan::Trivial;
+        }
+        if n.is_power_of_two() {
+            return Plan::Radix2(Radix2::new(n));
+        }
+        let m = (2 * n - 1).next_power_of_two();
+        let inner = Radix2::new(m);
+        // k² is reduced mod 2n in integers to keep the angle small and exact.
+        let two_n = 2 * n as u128;
+        let chirp: Vec<Complex> = (0..n)
+            .map(|k| {
+                let k2 = ((k as u128 * k as u128) % two_n) as f64;
+                Complex::cis(-PI * k2 / n as f64)
+            })
+            .collect();
+        let mut bfft = vec![Complex::default(); m];
+        bfft[0] = chirp[0].conj();
+        for k in 1..n {
+            bfft[k] = chirp[k].conj();
+            bfft[m - k] = chirp[k].conj();
+        }
+        inner.run(&mut bfft);
+        Plan::Bluestein {
+            n,
+            inner,
+            chirp,
+            bfft,
+        }
     }
-    if inverse {
+
+    /// Forward unnormalised transform in place; `scratch` is reused between calls.
+    fn forward(&self, data: &mut [Complex], scratch: &mut Vec<Complex>) {
+        match self {
+            Plan::Trivial => {}
+            Plan::Radix2(r) => r.run(data),
+            Plan::Bluestein {
+                n,
+                inner,
+                chirp,
+                bfft,
+            } => {
+                let m = inner.n;
+                scratch.clear();
+                scratch.resize(m, Complex::default());
+                for k in 0..(*n).min(data.len()) {
+                    scratch[k] = data[k].mul(chirp[k]);
+                }
+                inner.run(scratch);
+                for (x, y) in scratch.iter_mut().zip(bfft) {
+                    // Multiply and conjugate, preparing the inverse FFT by conjugation.
+                    *x = x.mul(*y).conj();
+                }
+                inner.run(scratch);
+                let inv_m = 1.0 / m as f64;
+                for k in 0..(*n).min(data.len()) {
+                    data[k] = scratch[k].conj().scale(inv_m).mul(chirp[k]);
+                }
+            }
+        }
+    }
+
+    /// Forward or inverse (scaled by `1/N`) transform in place.
+    fn run(&self, data: &mut [Complex], inverse: bool, scratch: &mut Vec<Complex>) {
+        if !inverse {
+            self.forward(data, scratch);
+            return;
+        }
         for x in data.iter_mut() {
             *x = x.conj();
         }
-    }
-    if n.is_power_of_two() {
-        fft_pow2(data);
-    } else {
-        fft_bluestein(data);
-    }
-    if inverse {
-        let s = 1.0 / n as f64;
+        self.forward(data, scratch);
+        let s = 1.0 / data.len().max(1) as f64;
         for x in data.iter_mut() {
             *x = x.conj().scale(s);
         }
     }
 }
 
-/// In-place 2D FFT of a `(rows, cols)` array: every row, then every column.
+/// In-place FFT of any length (radix-2 for powers of two, Bluestein otherwise). With
+/// `inverse` the result is scaled by `1/N`.
+pub fn fft(data: &mut [Complex], inverse: bool) {
+    if data.len() <= 1 {
+        return;
+    }
+    Plan::new(data.len()).run(data, inverse, &mut Vec::new());
+}
+
+/// In-place 2D FFT of a `(rows, cols)` array: every row, then every column (one plan per
+/// axis, reused for all lines).
 pub fn fft2(data: &mut Array2<Complex>, inverse: bool) {
     let (rows, cols) = data.dim();
     let mut buf = vec![Complex::default(); rows.max(cols)];
+    let mut scratch = Vec::new();
+    let row_plan = Plan::new(cols);
     for mut row in data.rows_mut() {
         let b = &mut buf[..cols];
         for (x, v) in b.iter_mut().zip(row.iter()) {
             *x = *v;
         }
-        fft(b, inverse);
+        row_plan.run(b, inverse, &mut scratch);
         for (v, x) in row.iter_mut().zip(b.iter()) {
             *v = *x;
         }
     }
+    let col_plan = Plan::new(rows);
     for mut col in data.columns_mut() {
         let b = &mut buf[..rows];
         for (x, v) in b.iter_mut().zip(col.iter()) {
             *x = *v;
         }
-        fft(b, inverse);
+        col_plan.run(b, inverse, &mut scratch);
         for (v, x) in col.iter_mut().zip(b.iter()) {
             *v = *x;
         }
@@ -252,4 +312,44 @@ pub fn band_energy(z: &Array2<f32>, f_lo: f64, f_hi: f64) -> f64 {
         }
     }
     e
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radix2_and_bluestein_match_naive_dft() {
+        for n in [1usize, 2, 3, 5, 8, 12, 17, 64, 100] {
+            let x: Vec<Complex> = (0..n)
+                .map(|i| Complex::new((i as f64 * 0.7).sin(), (i as f64 * 1.3).cos()))
+                .collect();
+            let mut f = x.clone();
+            fft(&mut f, false);
+            for (a, b) in f.iter().zip(dft_naive(&x, false)) {
+                assert!(a.sub(b).norm_sqr().sqrt() < 1e-10, "n = {n}");
+            }
+            fft(&mut f, true);
+            for (a, b) in f.iter().zip(&x) {
+                assert!(a.sub(*b).norm_sqr().sqrt() < 1e-12, "n = {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn band_energy_parseval() {
+        // The full band holds rows·cols·Σ x_w² (Parseval), corners beyond 0.5 included.
+        let z = Array2::from_shape_fn((6, 10), |(r, c)| ((r * 7 + c * 3) % 5) as f32);
+        let mean = z.iter().map(|&v| v as f64).sum::<f64>() / 60.0;
+        let (wr, wc) = (hann(6), hann(10));
+        let mut s = 0.0;
+        for ((r, c), &v) in z.indexed_iter() {
+            let x = (v as f64 - mean) * wr[r] * wc[c];
+            s += x * x;
+        }
+        let e = band_energy(&z, 0.0, 1.0);
+        assert!((e - 60.0 * s).abs() < 1e-9 * e.max(1.0));
+        assert_eq!(bin_freq(3, 6), 0.5);
+        assert_eq!(bin_freq(4, 6), -2.0 / 6.0);
+    }
 }
