@@ -18,8 +18,14 @@ use terrasynth::synth::{Amplifier, Field, Window};
 /// The default dictionary (embedded exemplar, default options, derived layers), cached under
 /// `target/` so that repeated bench runs do not rebuild it.
 fn default_dictionary(base: &Array2<f32>, cell_m: f64, derived: bool) -> Dictionary {
-    let name = if derived { "bench-default.dict" } else { "bench-elevation.dict" };
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target").join(name);
+    let name = if derived {
+        "bench-default.dict"
+    } else {
+        "bench-elevation.dict"
+    };
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("target")
+        .join(name);
     if let Ok(f) = std::fs::File::open(&path) {
         if let Ok(d) = read_dictionary(std::io::BufReader::new(f), 1 << 32) {
             return d;

@@ -11,7 +11,11 @@ use terrasynth::dictionary::build::BuildOptions;
 use terrasynth::dictionary::{Learning, MatchWeights};
 
 #[derive(Parser)]
-#[command(name = "terrasynth", version, about = "Synthesized terrain: amplify DEMs with dictionaries learned from real terrain")]
+#[command(
+    name = "terrasynth",
+    version,
+    about = "Synthesized terrain: amplify DEMs with dictionaries learned from real terrain"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -53,11 +53,15 @@ fn random_dictionary(n: usize, values: &[f32], dups: usize) -> Dictionary {
             },
             LayerInfo {
                 name: "rock".into(),
-                kind: LayerKind::Class { group: "soil".into() },
+                kind: LayerKind::Class {
+                    group: "soil".into(),
+                },
             },
             LayerInfo {
                 name: "sand".into(),
-                kind: LayerKind::Class { group: "soil".into() },
+                kind: LayerKind::Class {
+                    group: "soil".into(),
+                },
             },
         ],
         n_atoms: n,
@@ -83,9 +87,22 @@ fn query_from(values: &[f32], alt: f32, slope: f32, with_layers: bool) -> Query 
     let raw: Vec<f32> = values.iter().cycle().take(16).cloned().collect();
     let layers = if with_layers {
         vec![
-            unit_centred(&values.iter().rev().cycle().take(16).cloned().collect::<Vec<_>>()),
+            unit_centred(
+                &values
+                    .iter()
+                    .rev()
+                    .cycle()
+                    .take(16)
+                    .cloned()
+                    .collect::<Vec<_>>(),
+            ),
             values.iter().map(|v| v.abs()).cycle().take(16).collect(),
-            values.iter().map(|v| (v * 3.0).abs()).cycle().take(16).collect(),
+            values
+                .iter()
+                .map(|v| (v * 3.0).abs())
+                .cycle()
+                .take(16)
+                .collect(),
         ]
     } else {
         vec![Vec::new(), Vec::new(), Vec::new()]
@@ -169,10 +186,22 @@ fn elevation_term_preserves_orientation() {
     let atom = dict.lo_atom(7).to_vec();
     let neg: Vec<f32> = atom.iter().map(|v| -v).collect();
     let mut s = MatchScratch::default();
-    let (k, dot) = matcher.best_match(&Query { elevation: atom, ..Query::default() }, &mut s);
+    let (k, dot) = matcher.best_match(
+        &Query {
+            elevation: atom,
+            ..Query::default()
+        },
+        &mut s,
+    );
     assert_eq!(k, 7);
     assert!((dot - 1.0).abs() < 1e-5);
-    let (k2, dot2) = matcher.best_match(&Query { elevation: neg, ..Query::default() }, &mut s);
+    let (k2, dot2) = matcher.best_match(
+        &Query {
+            elevation: neg,
+            ..Query::default()
+        },
+        &mut s,
+    );
     assert_ne!(k2, 7, "an inverted ridge must not match the ridge");
     assert!(dot2 > -1.0 + 1e-3);
 }

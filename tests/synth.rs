@@ -12,7 +12,10 @@ use common::{small_dictionary, synthetic_terrain};
 
 fn box2(a: &Array2<f32>) -> Array2<f32> {
     Array2::from_shape_fn((a.nrows() / 2, a.ncols() / 2), |(r, c)| {
-        (a[[2 * r, 2 * c]] + a[[2 * r, 2 * c + 1]] + a[[2 * r + 1, 2 * c]] + a[[2 * r + 1, 2 * c + 1]])
+        (a[[2 * r, 2 * c]]
+            + a[[2 * r, 2 * c + 1]]
+            + a[[2 * r + 1, 2 * c]]
+            + a[[2 * r + 1, 2 * c + 1]])
             / 4.0
     })
 }
@@ -84,7 +87,10 @@ fn result_is_identical_with_one_and_several_threads() {
                 layers: vec![],
             };
             let w = MatchWeights::default();
-            let amps = vec![Amplifier::new(&dict, &w).unwrap(), Amplifier::new(&dict, &w).unwrap()];
+            let amps = vec![
+                Amplifier::new(&dict, &w).unwrap(),
+                Amplifier::new(&dict, &w).unwrap(),
+            ];
             amplify_chain(&amps, &src, Window::new(0, 0, 256, 256), 100.0).unwrap()
         })
     };
@@ -108,12 +114,19 @@ fn two_levels_box_average_back_to_the_input() {
         layers: vec![],
     };
     let w = MatchWeights::default();
-    let amps = vec![Amplifier::new(&dict, &w).unwrap(), Amplifier::new(&dict, &w).unwrap()];
+    let amps = vec![
+        Amplifier::new(&dict, &w).unwrap(),
+        Amplifier::new(&dict, &w).unwrap(),
+    ];
     let out = amplify_chain(&amps, &src, Window::new(0, 0, 256, 256), 100.0).unwrap();
     let back = box2(&box2(&out.elevation));
-    let relief = base.iter().cloned().fold(f32::MIN, f32::max) - base.iter().cloned().fold(f32::MAX, f32::min);
+    let relief = base.iter().cloned().fold(f32::MIN, f32::max)
+        - base.iter().cloned().fold(f32::MAX, f32::min);
     let err = rmse(&back, &base);
-    assert!(err < 0.01 * f64::from(relief), "rmse {err} vs relief {relief}");
+    assert!(
+        err < 0.01 * f64::from(relief),
+        "rmse {err} vs relief {relief}"
+    );
     // It adds detail: the result is not a smooth interpolation of the input.
     let nn = Array2::from_shape_fn((256, 256), |(r, c)| base[[r / 4, c / 4]]);
     assert!(rmse(&out.elevation, &nn) > 1.0);
@@ -132,7 +145,10 @@ fn flat_input_stays_flat_and_finite() {
     let w = MatchWeights::default();
     let amps = vec![Amplifier::new(&dict, &w).unwrap()];
     let out = amplify_chain(&amps, &src, Window::new(0, 0, 80, 80), 50.0).unwrap();
-    assert!(out.elevation.iter().all(|v| (v - 1234.5).abs() < 1e-2), "flat stays flat");
+    assert!(
+        out.elevation.iter().all(|v| (v - 1234.5).abs() < 1e-2),
+        "flat stays flat"
+    );
 }
 
 #[test]
@@ -148,7 +164,10 @@ fn parent_too_small_is_an_error() {
         Err(SynthError::ParentTooSmall { .. })
     ));
     let full = Field::elevation_only(need, Array2::from_elem((need.rows, need.cols), f32::NAN));
-    assert!(matches!(amp.amplify(&full, out, 100.0), Err(SynthError::NonFinite)));
+    assert!(matches!(
+        amp.amplify(&full, out, 100.0),
+        Err(SynthError::NonFinite)
+    ));
 }
 
 #[test]
@@ -161,7 +180,10 @@ fn parent_window_is_what_amplify_reads() {
     let base = synthetic_terrain(200, 200, 4);
     let at = |w: Window| {
         Array2::from_shape_fn((w.rows, w.cols), |(r, c)| {
-            base[[(w.row0 + r as i64 + 50) as usize, (w.col0 + c as i64 + 50) as usize]]
+            base[[
+                (w.row0 + r as i64 + 50) as usize,
+                (w.col0 + c as i64 + 50) as usize,
+            ]]
         })
     };
     let exact = Field::elevation_only(need, at(need));
@@ -170,6 +192,8 @@ fn parent_window_is_what_amplify_reads() {
     wide.slice_mut(s![0..5, ..]).fill(1e6);
     wide.slice_mut(s![.., 0..5]).fill(-1e6);
     let a = amp.amplify(&exact, out, 100.0).unwrap();
-    let b = amp.amplify(&Field::elevation_only(wide_w, wide), out, 100.0).unwrap();
+    let b = amp
+        .amplify(&Field::elevation_only(wide_w, wide), out, 100.0)
+        .unwrap();
     assert_eq!(a.elevation, b.elevation);
 }

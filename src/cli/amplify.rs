@@ -168,10 +168,7 @@ pub fn parse_weights(s: &str) -> Result<MatchWeights, String> {
         let (k, v) = part
             .split_once('=')
             .ok_or_else(|| format!("`{part}`: expected NAME=WEIGHT"))?;
-        let v: f32 = v
-            .trim()
-            .parse()
-            .map_err(|e| format!("`{part}`: {e}"))?;
+        let v: f32 = v.trim().parse().map_err(|e| format!("`{part}`: {e}"))?;
         match k.trim() {
             "elevation" => w.elevation = v,
             "altitude" => w.altitude = v,

@@ -135,9 +135,9 @@ pub fn run(
     for path in &args.exemplars {
         progress("reading", 0.0);
         let raster = read_raster_file(path, None, &limits)?;
-        let grid = raster.elevation().ok_or_else(|| {
-            CliError::Usage(format!("{}: no elevation layer", path.display()))
-        })?;
+        let grid = raster
+            .elevation()
+            .ok_or_else(|| CliError::Usage(format!("{}: no elevation layer", path.display())))?;
         grids.push(grid);
     }
     let mut extra = Vec::new();
@@ -146,7 +146,15 @@ pub fn run(
             return Err(CliError::Usage(format!("invalid layer name `{name}`")));
         }
         let raster = read_raster_file(path, Some(grids[0].georef), &limits)?;
-        let grid = raster.elevation().or_else(|| raster.layers.first().map(|(_, a)| Grid::new(a.clone(), raster.georef))).ok_or_else(|| CliError::Usage(format!("{}: no layer", path.display())))?;
+        let grid = raster
+            .elevation()
+            .or_else(|| {
+                raster
+                    .layers
+                    .first()
+                    .map(|(_, a)| Grid::new(a.clone(), raster.georef))
+            })
+            .ok_or_else(|| CliError::Usage(format!("{}: no layer", path.display())))?;
         if grid.data.dim() != grids[0].data.dim() {
             return Err(CliError::Usage(format!(
                 "layer `{name}` is {}×{} but the exemplar is {}×{}",
@@ -214,6 +222,8 @@ pub fn parse_learning(s: &str) -> Result<Learning, String> {
             .parse()
             .map(|iterations| Learning::Medoids { iterations })
             .map_err(|e| format!("`{s}`: {e}")),
-        _ => Err(format!("`{s}`: expected `complete` or `medoids[:ITERATIONS]`")),
+        _ => Err(format!(
+            "`{s}`: expected `complete` or `medoids[:ITERATIONS]`"
+        )),
     }
 }

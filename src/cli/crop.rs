@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use ndarray::{s, Array2};
+use ndarray::s;
 
 use super::build::Exclusion;
 use super::error::CliError;
@@ -20,22 +20,6 @@ pub struct CropArgs {
     pub down: usize,
     /// Output GeoTIFF.
     pub output: PathBuf,
-}
-
-/// Box average by `factor` (each output cell is the mean of a `factor × factor` block, summed
-/// row by row). `a`'s dimensions must be multiples of `factor`.
-pub fn box_down(a: &Array2<f32>, factor: usize) -> Array2<f32> {
-    let (rows, cols) = (a.nrows() / factor, a.ncols() / factor);
-    let inv = 1.0 / (factor * factor) as f32;
-    Array2::from_shape_fn((rows, cols), |(r, c)| {
-        let mut sum = 0.0f32;
-        for rr in 0..factor {
-            for cc in 0..factor {
-                sum += a[[r * factor + rr, c * factor + cc]];
-            }
-        }
-        sum * inv
-    })
 }
 
 /// Runs `crop`.
@@ -72,18 +56,17 @@ pub fn run(args: &CropArgs) -> Result<Grid, CliError> {
             .slice(s![w.row..w.row + w.height, w.col..w.col + w.width])
             .to_owned(),
         georef: grid.georef.window(w.col as i64, w.row as i64),
-        valid: grid
-            .valid
-            .as_ref()
-            .map(|m| m.slice(s![w.row..w.row + w.height, w.col..w.col + w.width]).to_owned()),
+        valid: grid.valid.as_ref().map(|m| {
+            m.slice(s![w.row..w.row + w.height, w.col..w.col + w.width])
+                .to_owned()
+        }),
     };
     cut.require_some_valid()?;
     let out = if args.down > 1 {
         let filled = cut.filled()?;
-        Grid::new(
-            box_down(&filled, args.down),
-            cut.georef.refined(1.0 / args.down as f64),
-        )
+        let down = crate::analysis::box_down(&filled, args.down)
+            .map_err(|e| CliError::Usage(e.to_string()))?;
+        Grid::new(down, cut.georef.refined(1.0 / args.down as f64))
     } else {
         cut
     };

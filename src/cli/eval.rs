@@ -7,7 +7,6 @@ use std::path::PathBuf;
 use ndarray::Array2;
 use serde::Serialize;
 
-use super::crop::box_down;
 use super::error::CliError;
 use crate::analysis;
 use crate::raster::{read_raster_file, CellSizes, Grid, ReadLimits};
@@ -85,8 +84,10 @@ struct Reference<'a> {
     truth: &'a Array2<f32>,
 }
 
+/// Energy of every frequency above the coarse grid's Nyquist (radially, up to the corners of the
+/// spectrum): the band that down-sampling by `factor` removed.
 fn band(z: &Array2<f32>, factor: usize) -> f64 {
-    analysis::band_energy(z, 0.5 / factor as f64, 0.5)
+    analysis::band_energy(z, 0.5 / factor as f64, 1.0)
 }
 
 fn slopes_deg(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
@@ -106,15 +107,18 @@ fn log_areas(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
 
 fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
     let flood = analysis::flood_extent(z);
-    let down = box_down(z, reference.factor);
-    let consistency = if reference.input_relief > 0.0 {
-        100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
-    } else {
-        0.0
+    let consistency = match analysis::box_down(z, reference.factor) {
+        Ok(down) if reference.input_relief > 0.0 => {
+            100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
+        }
+        _ => 0.0,
     };
     Metrics {
         rmse_m: analysis::rmse(z, reference.truth),
-        slope_wasserstein_deg: analysis::wasserstein1(&slopes_deg(z, reference.cells), &reference.slopes),
+        slope_wasserstein_deg: analysis::wasserstein1(
+            &slopes_deg(z, reference.cells),
+            &reference.slopes,
+        ),
         band_energy_ratio: if reference.band > 0.0 {
             band(z, reference.factor) / reference.band
         } else {
@@ -122,7 +126,10 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
         },
         flood_extent_pct: flood,
         flood_extent_error_pct: (flood - reference.flood).abs(),
-        log_area_wasserstein: analysis::wasserstein1(&log_areas(z, reference.cells), &reference.log_area),
+        log_area_wasserstein: analysis::wasserstein1(
+            &log_areas(z, reference.cells),
+            &reference.log_area,
+        ),
         consistency_pct: consistency,
     }
 }
@@ -191,5 +198,9 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
             .elevation()
             .ok_or_else(|| CliError::Usage(format!("{}: no elevation layer", p.display())))
     };
-    evaluate(&read(&args.truth)?, &read(&args.input)?, &read(&args.output)?)
+    evaluate(
+        &read(&args.truth)?,
+        &read(&args.input)?,
+        &read(&args.output)?,
+    )
 }

@@ -28,7 +28,10 @@ impl ClampedRaster<'_> {
         let (rows, cols) = a.dim();
         let clamp = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
         Array2::from_shape_fn((w.rows, w.cols), |(r, c)| {
-            a[[clamp(w.row0 + r as i64, rows), clamp(w.col0 + c as i64, cols)]]
+            a[[
+                clamp(w.row0 + r as i64, rows),
+                clamp(w.col0 + c as i64, cols),
+            ]]
         })
     }
 }

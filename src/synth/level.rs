@@ -33,6 +33,11 @@ struct Primitive {
     coef: f32,
     /// `P_a`: the mean altitude added back.
     mean: f32,
+    /// `P_s`: the amplitude of the atom's detail component. Detail scales with the parent's local
+    /// relief, not with how well the coarse shapes matched: scaling it by `P_h · D_h,k` too would
+    /// shrink fine detail wherever the match is imperfect (measured: band energy 0.44 instead of
+    /// 0.59 of the real terrain's on the held-out Tien Shan crop).
+    detail_coef: f32,
 }
 
 /// The lattice rows and columns of the primitives that cover a hi-res window.
@@ -55,6 +60,45 @@ pub struct Amplifier<'d> {
     alpha: Vec<f32>,
     /// `step × step`: `1 / Σ α` at each pixel offset inside a lattice cell.
     inv_norm: Vec<f32>,
+    /// `step × step`: `1 / √(Σ α²)` at each pixel offset: the variance-preserving normaliser of
+    /// the detail component.
+    inv_rms: Vec<f32>,
+    /// `n × patch²`: the smooth part of each high atom, the bilinear up-sampling of its low atom.
+    smooth: Vec<f32>,
+    /// `n × patch²`: the detail part of each high atom, `hi − smooth`.
+    detail: Vec<f32>,
+}
+
+/// Number of smooth (bilinear) residual-correction passes before the exact nearest pass. Each
+/// pass shrinks the remaining residual's high frequencies, so that the final exact pass leaves
+/// only tiny 2×2 steps (which would otherwise create spurious pits).
+pub const SMOOTH_PASSES: i64 = 3;
+
+/// Cell-centred bilinear taps of child `x` on its parent row: `(k, w_k, w_{k+1})`. Child `2k`
+/// sits at parent coordinate `k − 1/4`, child `2k+1` at `k + 1/4`.
+fn bilinear_taps(x: i64) -> (i64, f32, f32) {
+    let k = floor_div(x, 2);
+    if x.rem_euclid(2) == 0 {
+        (k - 1, 0.25, 0.75)
+    } else {
+        (k, 0.75, 0.25)
+    }
+}
+
+/// Bilinear up-sampling of a `lo × lo` patch to `2lo × 2lo`, clamped at the patch edges.
+fn upsample_patch(lo_patch: &[f32], lo: usize, out: &mut [f32]) {
+    let hi = 2 * lo;
+    let clamp = |k: i64| k.clamp(0, lo as i64 - 1) as usize;
+    for r in 0..hi {
+        let (ky, wy0, wy1) = bilinear_taps(r as i64);
+        let (y0, y1) = (clamp(ky), clamp(ky + 1));
+        for c in 0..hi {
+            let (kx, wx0, wx1) = bilinear_taps(c as i64);
+            let (x0, x1) = (clamp(kx), clamp(kx + 1));
+            out[r * hi + c] = wy0 * (wx0 * lo_patch[y0 * lo + x0] + wx1 * lo_patch[y0 * lo + x1])
+                + wy1 * (wx0 * lo_patch[y1 * lo + x0] + wx1 * lo_patch[y1 * lo + x1]);
+        }
+    }
 }
 
 impl<'d> Amplifier<'d> {
@@ -81,18 +125,39 @@ impl<'d> Amplifier<'d> {
         // A pixel at offset (oy, ox) of a lattice cell is covered by the four primitives that see
         // it at patch offsets {oy, oy+step} × {ox, ox+step}; sum them in lattice order.
         let mut inv_norm = vec![0.0f32; step * step];
+        let mut inv_rms = vec![0.0f32; step * step];
         for oy in 0..step {
             for ox in 0..step {
-                let mut sum = 0.0f32;
+                let (mut sum, mut sum2) = (0.0f32, 0.0f32);
                 for py in [oy + step, oy] {
                     for px in [ox + step, ox] {
-                        sum += alpha[py * patch + px];
+                        let a = alpha[py * patch + px];
+                        sum += a;
+                        sum2 += a * a;
                     }
                 }
                 inv_norm[oy * step + ox] = 1.0 / sum;
+                inv_rms[oy * step + ox] = 1.0 / sum2.sqrt();
+            }
+        }
+        let p2 = patch * patch;
+        let mut smooth = vec![0.0f32; dict.n_atoms * p2];
+        let mut detail = vec![0.0f32; dict.n_atoms * p2];
+        for i in 0..dict.n_atoms {
+            let sm = &mut smooth[i * p2..(i + 1) * p2];
+            upsample_patch(dict.lo_atom(i), patch / 2, sm);
+            for ((d, &h), &m) in detail[i * p2..(i + 1) * p2]
+                .iter_mut()
+                .zip(dict.hi_atom(i))
+                .zip(sm.iter())
+            {
+                *d = h - m;
             }
         }
         Ok(Amplifier {
+            inv_rms,
+            smooth,
+            detail,
             matcher: Matcher::new(dict, weights)?,
             dict,
             patch,
@@ -113,11 +178,12 @@ impl<'d> Amplifier<'d> {
     }
 
     /// The hi-res window on which the raw blend is needed for output window `out`: the children
-    /// of the parent pixels under `out`, widened by one parent pixel for bilinear up-sampling.
+    /// of the parent pixels under `out`, widened by one parent pixel per smooth correction pass.
     fn blend_window(out: Window) -> Window {
+        let n = SMOOTH_PASSES;
         let (k0, k1) = Self::parent_span(out.col0, out.col1());
         let (l0, l1) = Self::parent_span(out.row0, out.row1());
-        Window::from_bounds(2 * (k0 - 1), 2 * (l0 - 1), 2 * (k1 + 1), 2 * (l1 + 1))
+        Window::from_bounds(2 * (k0 - n), 2 * (l0 - n), 2 * (k1 + n), 2 * (l1 + n))
     }
 
     /// Lattice indices of the primitives whose support `[c − step, c + step)` meets window `w`.
@@ -140,10 +206,11 @@ impl<'d> Amplifier<'d> {
         let q = (self.patch / 4) as i64;
         let (k0, k1) = Self::parent_span(out.col0, out.col1());
         let (l0, l1) = Self::parent_span(out.row0, out.row1());
-        let c0 = (lr.i0 * s / 2 - q).min(k0 - 1);
-        let c1 = ((lr.i1 - 1) * s / 2 + q).max(k1 + 1);
-        let r0 = (lr.j0 * s / 2 - q).min(l0 - 1);
-        let r1 = ((lr.j1 - 1) * s / 2 + q).max(l1 + 1);
+        let n = SMOOTH_PASSES;
+        let c0 = (lr.i0 * s / 2 - q).min(k0 - n);
+        let c1 = ((lr.i1 - 1) * s / 2 + q).max(k1 + n);
+        let r0 = (lr.j0 * s / 2 - q).min(l0 - n);
+        let r1 = ((lr.j1 - 1) * s / 2 + q).max(l1 + n);
         Window::from_bounds(c0, r0, c1, r1)
     }
 
@@ -174,7 +241,13 @@ impl<'d> Amplifier<'d> {
         (0..nj * ni)
             .into_par_iter()
             .map_init(
-                || (MatchScratch::default(), vec![0.0f32; lo * lo], Query::default()),
+                || {
+                    (
+                        MatchScratch::default(),
+                        vec![0.0f32; lo * lo],
+                        Query::default(),
+                    )
+                },
                 |(scratch, raw, query), n| {
                     let i = lr.i0 + (n % ni) as i64;
                     let j = lr.j0 + (n / ni) as i64;
@@ -211,27 +284,39 @@ impl<'d> Amplifier<'d> {
                         atom,
                         coef: dot * norm,
                         mean,
+                        detail_coef: norm,
                     }
                 },
             )
             .collect()
     }
 
-    /// Blends the primitives over window `bw`: `acc[p] = Σ α·value / Σ α`, contributions added in
-    /// lattice order. `value(prim, offset)` gives the reconstructed value of a primitive at a
-    /// patch offset.
-    fn blend<F>(&self, bw: Window, lr: LatticeRange, prims: &[Primitive], value: F) -> Array2<f32>
+    /// Blends the primitives over window `bw`, adding contributions in lattice order:
+    /// `Σ α·smooth / Σ α + Σ α·detail / √(Σ α²)`. `smooth(prim, offset)` and `detail(prim, offset)`
+    /// give a primitive's two components at a patch offset; the detail component is blended with
+    /// the variance-preserving normaliser so that overlapping patches do not average detail away.
+    fn blend<S, D>(
+        &self,
+        bw: Window,
+        lr: LatticeRange,
+        prims: &[Primitive],
+        smooth: S,
+        detail: Option<D>,
+    ) -> Array2<f32>
     where
-        F: Fn(&Primitive, usize) -> f32 + Sync,
+        S: Fn(&Primitive, usize) -> f32 + Sync,
+        D: Fn(&Primitive, usize) -> f32 + Sync,
     {
         let s = self.step as i64;
         let p = self.patch;
         let ni = (lr.i1 - lr.i0) as usize;
+        let cols = bw.cols.max(1);
         let mut flat = vec![0.0f32; bw.rows * bw.cols];
-        flat.par_chunks_mut(bw.cols.max(1))
-            .enumerate()
-            .for_each(|(r, row)| {
+        flat.par_chunks_mut(cols).enumerate().for_each_init(
+            || vec![0.0f32; cols],
+            |acc_detail, (r, row)| {
                 let y = bw.row0 + r as i64;
+                acc_detail.iter_mut().for_each(|v| *v = 0.0);
                 // The two primitive rows covering y: c_j ∈ (y − s, y + s].
                 let j_hi = floor_div(y + s, s);
                 for j in [j_hi - 1, j_hi] {
@@ -246,16 +331,23 @@ impl<'d> Amplifier<'d> {
                         for x in x_start..x_end {
                             let ox = (x - (i * s - s)) as usize;
                             let o = oy * p + ox;
-                            row[(x - bw.col0) as usize] += self.alpha[o] * value(prim, o);
+                            let c = (x - bw.col0) as usize;
+                            let a = self.alpha[o];
+                            row[c] += a * smooth(prim, o);
+                            if let Some(d) = &detail {
+                                acc_detail[c] += a * d(prim, o);
+                            }
                         }
                     }
                 }
                 let oy = y.rem_euclid(s) as usize;
                 for (c, v) in row.iter_mut().enumerate() {
                     let ox = (bw.col0 + c as i64).rem_euclid(s) as usize;
-                    *v *= self.inv_norm[oy * self.step + ox];
+                    let k = oy * self.step + ox;
+                    *v = *v * self.inv_norm[k] + acc_detail[c] * self.inv_rms[k];
                 }
-            });
+            },
+        );
         Array2::from_shape_vec((bw.rows, bw.cols), flat).unwrap_or_default()
     }
 
@@ -271,7 +363,10 @@ impl<'d> Amplifier<'d> {
         parent_cell_m: f32,
     ) -> Result<Field, SynthError> {
         if out.is_empty() || out.len() > (1usize << 30) {
-            return Err(SynthError::BadWindow(format!("{out} has {} pixels", out.len())));
+            return Err(SynthError::BadWindow(format!(
+                "{out} has {} pixels",
+                out.len()
+            )));
         }
         let needed = self.parent_window_for(out);
         if !parent.window.contains(&needed) {
@@ -292,16 +387,25 @@ impl<'d> Amplifier<'d> {
         let prims = self.match_primitives(&parent, lr, parent_cell_m);
         let p2 = self.patch * self.patch;
         let dict = self.dict;
-        let blended = self.blend(bw, lr, &prims, |prim, o| {
-            prim.coef * dict.hi_elev[prim.atom * p2 + o] + prim.mean
-        });
+        let (smooth, detail) = (&self.smooth, &self.detail);
+        let blended = self.blend(
+            bw,
+            lr,
+            &prims,
+            |prim, o| prim.coef * smooth[prim.atom * p2 + o] + prim.mean,
+            Some(|prim: &Primitive, o| prim.detail_coef * detail[prim.atom * p2 + o]),
+        );
         let elevation = correct(&blended, bw, &parent.elevation, parent.window, out);
         let nl = dict.layers.len();
         let mut layers = Vec::with_capacity(nl);
         for (l, info) in dict.layers.iter().enumerate() {
-            let raw = self.blend(bw, lr, &prims, |prim, o| {
-                dict.hi_layers[(prim.atom * nl + l) * p2 + o]
-            });
+            let raw = self.blend(
+                bw,
+                lr,
+                &prims,
+                |prim, o| dict.hi_layers[(prim.atom * nl + l) * p2 + o],
+                None::<fn(&Primitive, usize) -> f32>,
+            );
             let field = match parent.layer(&info.name) {
                 Some(pl) => correct(&raw, bw, pl, parent.window, out),
                 None => crop(&raw, bw, out),
@@ -332,43 +436,41 @@ fn down_at(hi: &Array2<f32>, hw: Window, col: i64, row: i64) -> f32 {
 }
 
 /// Residual correction of a raw blend `b` (held over the blend window `bw`) against the parent
-/// field `f` (held over `fw`), returning the corrected values over `out`.
+/// field `f` (held over `fw`), returning the corrected values over `out`: [`SMOOTH_PASSES`] passes
+/// of `G += bilinear(F − Down(G))`, each on a window one parent pixel narrower, then the exact pass
+/// `G += nearest(F − Down(G))`.
 fn correct(b: &Array2<f32>, bw: Window, f: &Array2<f32>, fw: Window, out: Window) -> Array2<f32> {
     let (k0, k1) = Amplifier::parent_span(out.col0, out.col1());
     let (l0, l1) = Amplifier::parent_span(out.row0, out.row1());
     let pv = |col: i64, row: i64| f[[(row - fw.row0) as usize, (col - fw.col0) as usize]];
-    // r1 over parent pixels [k0−1, k1+1) × [l0−1, l1+1).
-    let rw = Window::from_bounds(k0 - 1, l0 - 1, k1 + 1, l1 + 1);
-    let r1 = Array2::from_shape_fn((rw.rows, rw.cols), |(r, c)| {
-        let col = rw.col0 + c as i64;
-        let row = rw.row0 + r as i64;
-        pv(col, row) - down_at(b, bw, col, row)
-    });
-    // G = B + bilinear(r1) over the children of [k0, k1) × [l0, l1).
-    let gw = Window::from_bounds(2 * k0, 2 * l0, 2 * k1, 2 * l1);
-    let taps = |x: i64| -> (i64, f32, f32) {
-        // Child 2k sits at parent coordinate k − 1/4 (between k−1 and k), child 2k+1 at k + 1/4.
-        let k = floor_div(x, 2);
-        if x.rem_euclid(2) == 0 {
-            (k - 1, 0.25, 0.75)
-        } else {
-            (k, 0.75, 0.25)
+    let mut g = b.clone();
+    let mut gw = bw;
+    for pass in 1..=SMOOTH_PASSES {
+        // Residual over the parent pixels whose children G covers.
+        let rw = Window::from_bounds(gw.col0 / 2, gw.row0 / 2, gw.col1() / 2, gw.row1() / 2);
+        let r = Array2::from_shape_fn((rw.rows, rw.cols), |(rr, cc)| {
+            let col = rw.col0 + cc as i64;
+            let row = rw.row0 + rr as i64;
+            pv(col, row) - down_at(&g, gw, col, row)
+        });
+        let n = SMOOTH_PASSES - pass;
+        let nw = Window::from_bounds(2 * (k0 - n), 2 * (l0 - n), 2 * (k1 + n), 2 * (l1 + n));
+        let mut next = Array2::<f32>::zeros((nw.rows, nw.cols));
+        for rr in 0..nw.rows {
+            let y = nw.row0 + rr as i64;
+            let (ky, wy0, wy1) = bilinear_taps(y);
+            let ry = (ky - rw.row0) as usize;
+            for cc in 0..nw.cols {
+                let x = nw.col0 + cc as i64;
+                let (kx, wx0, wx1) = bilinear_taps(x);
+                let rx = (kx - rw.col0) as usize;
+                let up = wy0 * (wx0 * r[[ry, rx]] + wx1 * r[[ry, rx + 1]])
+                    + wy1 * (wx0 * r[[ry + 1, rx]] + wx1 * r[[ry + 1, rx + 1]]);
+                next[[rr, cc]] = g[[(y - gw.row0) as usize, (x - gw.col0) as usize]] + up;
+            }
         }
-    };
-    let mut g = Array2::<f32>::zeros((gw.rows, gw.cols));
-    for r in 0..gw.rows {
-        let y = gw.row0 + r as i64;
-        let (ky, wy0, wy1) = taps(y);
-        let ry = (ky - rw.row0) as usize;
-        for c in 0..gw.cols {
-            let x = gw.col0 + c as i64;
-            let (kx, wx0, wx1) = taps(x);
-            let rx = (kx - rw.col0) as usize;
-            let up = wy0 * (wx0 * r1[[ry, rx]] + wx1 * r1[[ry, rx + 1]])
-                + wy1 * (wx0 * r1[[ry + 1, rx]] + wx1 * r1[[ry + 1, rx + 1]]);
-            let bv = b[[(y - bw.row0) as usize, (x - bw.col0) as usize]];
-            g[[r, c]] = bv + up;
-        }
+        g = next;
+        gw = nw;
     }
     // F = G + nearest(F_{L−1} − Down(G)) over out.
     let mut res = Array2::<f32>::zeros((out.rows, out.cols));
