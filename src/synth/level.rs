@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use super::error::SynthError;
 use super::field::{Field, Window};
-use crate::dictionary::features::{box_down2, centre_normalise, patch_mean_slope};
+use crate::dictionary::features::{centre_normalise, patch_mean_slope};
 use crate::dictionary::matching::{unit_centred, MatchScratch, MatchWeights, Matcher, Query};
 use crate::dictionary::{Dictionary, LayerKind};
 
@@ -38,6 +38,15 @@ struct Primitive {
     /// shrink fine detail wherever the match is imperfect (measured: band energy 0.44 instead of
     /// 0.59 of the real terrain's on the held-out Tien Shan crop).
     detail_coef: f32,
+}
+
+/// What [`Amplifier::blend`] reconstructs.
+#[derive(Clone, Copy, Debug)]
+enum Blended {
+    /// Elevation: smooth and detail components.
+    Elevation,
+    /// Extra dictionary layer `l`.
+    Layer(usize),
 }
 
 /// The lattice rows and columns of the primitives that cover a hi-res window.
@@ -291,24 +300,22 @@ impl<'d> Amplifier<'d> {
             .collect()
     }
 
-    /// Blends the primitives over window `bw`, adding contributions in lattice order:
-    /// `Σ α·smooth / Σ α + Σ α·detail / √(Σ α²)`. `smooth(prim, offset)` and `detail(prim, offset)`
-    /// give a primitive's two components at a patch offset; the detail component is blended with
-    /// the variance-preserving normaliser so that overlapping patches do not average detail away.
-    fn blend<S, D>(
+    /// Blends the primitives over window `bw`, adding contributions in lattice order. For
+    /// [`Blended::Elevation`] the value is `Σ α·smooth / Σ α + Σ α·detail / √(Σ α²)` with
+    /// `smooth = coef·U_k + P_a` and `detail = P_s·(D~_k − U_k)`: the detail component uses the
+    /// variance-preserving normaliser so that overlapping patches do not average detail away. For
+    /// [`Blended::Layer`] it is `Σ α·D~_k^l / Σ α`.
+    fn blend(
         &self,
         bw: Window,
         lr: LatticeRange,
         prims: &[Primitive],
-        smooth: S,
-        detail: Option<D>,
-    ) -> Array2<f32>
-    where
-        S: Fn(&Primitive, usize) -> f32 + Sync,
-        D: Fn(&Primitive, usize) -> f32 + Sync,
-    {
+        what: Blended,
+    ) -> Array2<f32> {
         let s = self.step as i64;
         let p = self.patch;
+        let p2 = p * p;
+        let nl = self.dict.layers.len();
         let ni = (lr.i1 - lr.i0) as usize;
         let cols = bw.cols.max(1);
         let mut flat = vec![0.0f32; bw.rows * bw.cols];
@@ -324,18 +331,36 @@ impl<'d> Amplifier<'d> {
                         continue;
                     }
                     let oy = (y - (j * s - s)) as usize;
+                    let alpha_row = &self.alpha[oy * p..(oy + 1) * p];
                     for i in lr.i0..lr.i1 {
                         let prim = &prims[(j - lr.j0) as usize * ni + (i - lr.i0) as usize];
                         let x_start = (i * s - s).max(bw.col0);
                         let x_end = (i * s + s).min(bw.col1());
-                        for x in x_start..x_end {
-                            let ox = (x - (i * s - s)) as usize;
-                            let o = oy * p + ox;
-                            let c = (x - bw.col0) as usize;
-                            let a = self.alpha[o];
-                            row[c] += a * smooth(prim, o);
-                            if let Some(d) = &detail {
-                                acc_detail[c] += a * d(prim, o);
+                        if x_start >= x_end {
+                            continue;
+                        }
+                        let ox0 = (x_start - (i * s - s)) as usize;
+                        let len = (x_end - x_start) as usize;
+                        let c0 = (x_start - bw.col0) as usize;
+                        let a = &alpha_row[ox0..ox0 + len];
+                        let out = &mut row[c0..c0 + len];
+                        match what {
+                            Blended::Elevation => {
+                                let base = prim.atom * p2 + oy * p + ox0;
+                                let sm = &self.smooth[base..base + len];
+                                let dt = &self.detail[base..base + len];
+                                let det = &mut acc_detail[c0..c0 + len];
+                                for k in 0..len {
+                                    out[k] += a[k] * (prim.coef * sm[k] + prim.mean);
+                                    det[k] += a[k] * (prim.detail_coef * dt[k]);
+                                }
+                            }
+                            Blended::Layer(l) => {
+                                let base = (prim.atom * nl + l) * p2 + oy * p + ox0;
+                                let v = &self.dict.hi_layers[base..base + len];
+                                for k in 0..len {
+                                    out[k] += a[k] * v[k];
+                                }
                             }
                         }
                     }
@@ -385,27 +410,13 @@ impl<'d> Amplifier<'d> {
         let bw = Self::blend_window(out);
         let lr = self.lattice_range(bw);
         let prims = self.match_primitives(&parent, lr, parent_cell_m);
-        let p2 = self.patch * self.patch;
         let dict = self.dict;
-        let (smooth, detail) = (&self.smooth, &self.detail);
-        let blended = self.blend(
-            bw,
-            lr,
-            &prims,
-            |prim, o| prim.coef * smooth[prim.atom * p2 + o] + prim.mean,
-            Some(|prim: &Primitive, o| prim.detail_coef * detail[prim.atom * p2 + o]),
-        );
+        let blended = self.blend(bw, lr, &prims, Blended::Elevation);
         let elevation = correct(&blended, bw, &parent.elevation, parent.window, out);
         let nl = dict.layers.len();
         let mut layers = Vec::with_capacity(nl);
         for (l, info) in dict.layers.iter().enumerate() {
-            let raw = self.blend(
-                bw,
-                lr,
-                &prims,
-                |prim, o| dict.hi_layers[(prim.atom * nl + l) * p2 + o],
-                None::<fn(&Primitive, usize) -> f32>,
-            );
+            let raw = self.blend(bw, lr, &prims, Blended::Layer(l));
             let field = match parent.layer(&info.name) {
                 Some(pl) => correct(&raw, bw, pl, parent.window, out),
                 None => crop(&raw, bw, out),
@@ -427,82 +438,106 @@ fn crop(a: &Array2<f32>, aw: Window, w: Window) -> Array2<f32> {
     a.slice(s![r0..r0 + w.rows, c0..c0 + w.cols]).to_owned()
 }
 
-/// 2×2 box average of the children of parent pixels `k` over window `kw`, read from `hi`
-/// (held over `hw`), in the same order as [`box_down2`].
-fn down_at(hi: &Array2<f32>, hw: Window, col: i64, row: i64) -> f32 {
-    let r = (2 * row - hw.row0) as usize;
-    let c = (2 * col - hw.col0) as usize;
-    (hi[[r, c]] + hi[[r, c + 1]] + hi[[r + 1, c]] + hi[[r + 1, c + 1]]) * 0.25
+/// A row-major plane of values over a window of a level.
+struct Plane {
+    data: Vec<f32>,
+    w: Window,
+}
+
+impl Plane {
+    fn from_array(a: &Array2<f32>, w: Window) -> Plane {
+        Plane {
+            data: a.iter().copied().collect(),
+            w,
+        }
+    }
+
+    /// Row `y` (global), starting at column `w.col0`.
+    fn row(&self, y: i64) -> &[f32] {
+        let r = (y - self.w.row0) as usize;
+        &self.data[r * self.w.cols..(r + 1) * self.w.cols]
+    }
+}
+
+/// Per output column of window `w`: the bilinear taps into a residual plane starting at column
+/// `r_col0` (index of the left tap and the two weights).
+fn column_taps(w: Window, r_col0: i64) -> Vec<(usize, f32, f32)> {
+    (0..w.cols)
+        .map(|c| {
+            let (k, w0, w1) = bilinear_taps(w.col0 + c as i64);
+            ((k - r_col0) as usize, w0, w1)
+        })
+        .collect()
+}
+
+/// `F − Down(G)` over the parent pixels of window `rw` (whose children `g` covers), computed with
+/// the same 2×2 box average, in the same order, as
+/// [`box_down2`](crate::dictionary::features::box_down2).
+fn residual(f: &Plane, g: &Plane, rw: Window) -> Plane {
+    let mut data = vec![0.0f32; rw.len()];
+    data.par_chunks_mut(rw.cols.max(1))
+        .enumerate()
+        .for_each(|(rr, out)| {
+            let row = rw.row0 + rr as i64;
+            let (g0, g1) = (g.row(2 * row), g.row(2 * row + 1));
+            let fr = f.row(row);
+            for (cc, o) in out.iter_mut().enumerate() {
+                let col = rw.col0 + cc as i64;
+                let x = (2 * col - g.w.col0) as usize;
+                let down = (g0[x] + g0[x + 1] + g1[x] + g1[x + 1]) * 0.25;
+                *o = fr[(col - f.w.col0) as usize] - down;
+            }
+        });
+    Plane { data, w: rw }
 }
 
 /// Residual correction of a raw blend `b` (held over the blend window `bw`) against the parent
 /// field `f` (held over `fw`), returning the corrected values over `out`: [`SMOOTH_PASSES`] passes
 /// of `G += bilinear(F − Down(G))`, each on a window one parent pixel narrower, then the exact pass
-/// `G += nearest(F − Down(G))`.
+/// `G += nearest(F − Down(G))`. Every value is a function of global coordinates only, so the
+/// result is window-invariant; rows are processed in parallel.
 fn correct(b: &Array2<f32>, bw: Window, f: &Array2<f32>, fw: Window, out: Window) -> Array2<f32> {
     let (k0, k1) = Amplifier::parent_span(out.col0, out.col1());
     let (l0, l1) = Amplifier::parent_span(out.row0, out.row1());
-    let pv = |col: i64, row: i64| f[[(row - fw.row0) as usize, (col - fw.col0) as usize]];
-    let mut g = b.clone();
-    let mut gw = bw;
+    let f = Plane::from_array(f, fw);
+    let mut g = Plane::from_array(b, bw);
     for pass in 1..=SMOOTH_PASSES {
-        // Residual over the parent pixels whose children G covers.
-        let rw = Window::from_bounds(gw.col0 / 2, gw.row0 / 2, gw.col1() / 2, gw.row1() / 2);
-        let r = Array2::from_shape_fn((rw.rows, rw.cols), |(rr, cc)| {
-            let col = rw.col0 + cc as i64;
-            let row = rw.row0 + rr as i64;
-            pv(col, row) - down_at(&g, gw, col, row)
-        });
+        let rw = Window::from_bounds(g.w.col0 / 2, g.w.row0 / 2, g.w.col1() / 2, g.w.row1() / 2);
+        let r = residual(&f, &g, rw);
         let n = SMOOTH_PASSES - pass;
         let nw = Window::from_bounds(2 * (k0 - n), 2 * (l0 - n), 2 * (k1 + n), 2 * (l1 + n));
-        let mut next = Array2::<f32>::zeros((nw.rows, nw.cols));
-        for rr in 0..nw.rows {
-            let y = nw.row0 + rr as i64;
-            let (ky, wy0, wy1) = bilinear_taps(y);
-            let ry = (ky - rw.row0) as usize;
-            for cc in 0..nw.cols {
-                let x = nw.col0 + cc as i64;
-                let (kx, wx0, wx1) = bilinear_taps(x);
-                let rx = (kx - rw.col0) as usize;
-                let up = wy0 * (wx0 * r[[ry, rx]] + wx1 * r[[ry, rx + 1]])
-                    + wy1 * (wx0 * r[[ry + 1, rx]] + wx1 * r[[ry + 1, rx + 1]]);
-                next[[rr, cc]] = g[[(y - gw.row0) as usize, (x - gw.col0) as usize]] + up;
-            }
-        }
-        g = next;
-        gw = nw;
+        let taps = column_taps(nw, rw.col0);
+        let mut data = vec![0.0f32; nw.len()];
+        data.par_chunks_mut(nw.cols.max(1))
+            .enumerate()
+            .for_each(|(rr, o)| {
+                let y = nw.row0 + rr as i64;
+                let (ky, wy0, wy1) = bilinear_taps(y);
+                let (r0, r1) = (r.row(ky), r.row(ky + 1));
+                let grow = &g.row(y)[(nw.col0 - g.w.col0) as usize..];
+                for (cc, v) in o.iter_mut().enumerate() {
+                    let (rx, wx0, wx1) = taps[cc];
+                    let up = wy0 * (wx0 * r0[rx] + wx1 * r0[rx + 1])
+                        + wy1 * (wx0 * r1[rx] + wx1 * r1[rx + 1]);
+                    *v = grow[cc] + up;
+                }
+            });
+        g = Plane { data, w: nw };
     }
     // F = G + nearest(F_{L−1} − Down(G)) over out.
-    let mut res = Array2::<f32>::zeros((out.rows, out.cols));
-    for r in 0..out.rows {
-        let y = out.row0 + r as i64;
-        let ky = floor_div(y, 2);
-        for c in 0..out.cols {
-            let x = out.col0 + c as i64;
-            let kx = floor_div(x, 2);
-            let r2 = pv(kx, ky) - down_at(&g, gw, kx, ky);
-            res[[r, c]] = g[[(y - gw.row0) as usize, (x - gw.col0) as usize]] + r2;
-        }
-    }
-    res
-}
-
-/// The 2×2 box down-sampling used on inputs, exposed for callers that must reproduce exactly the
-/// filter the dictionary was built with.
-pub fn box_down_grid(hi: &Array2<f32>) -> Array2<f32> {
-    let (rows, cols) = (hi.nrows() / 2, hi.ncols() / 2);
-    let mut out = Array2::<f32>::zeros((rows, cols));
-    let mut block = [0.0f32; 4];
-    let mut one = [0.0f32; 1];
-    for r in 0..rows {
-        for c in 0..cols {
-            block[0] = hi[[2 * r, 2 * c]];
-            block[1] = hi[[2 * r, 2 * c + 1]];
-            block[2] = hi[[2 * r + 1, 2 * c]];
-            block[3] = hi[[2 * r + 1, 2 * c + 1]];
-            box_down2(&block, 2, &mut one);
-            out[[r, c]] = one[0];
-        }
-    }
-    out
+    let rw = Window::from_bounds(k0, l0, k1, l1);
+    let r = residual(&f, &g, rw);
+    let mut data = vec![0.0f32; out.len()];
+    data.par_chunks_mut(out.cols.max(1))
+        .enumerate()
+        .for_each(|(rr, o)| {
+            let y = out.row0 + rr as i64;
+            let rrow = r.row(floor_div(y, 2));
+            let grow = &g.row(y)[(out.col0 - g.w.col0) as usize..];
+            for (cc, v) in o.iter_mut().enumerate() {
+                let kx = floor_div(out.col0 + cc as i64, 2);
+                *v = grow[cc] + rrow[(kx - rw.col0) as usize];
+            }
+        });
+    Array2::from_shape_vec((out.rows, out.cols), data).unwrap_or_default()
 }
