@@ -18,7 +18,7 @@ use terrasynth::dictionary::{Learning, MatchWeights};
 )]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Subcommand)]
@@ -171,7 +171,15 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
 }
 
 fn run(cli: Cli) -> Result<(), CliError> {
-    match cli.command {
+    let Some(command) = cli.command else {
+        // The tile server becomes the default command once it exists; until then, show the help.
+        use clap::CommandFactory;
+        let mut cmd = Cli::command();
+        let _ = cmd.print_help();
+        println!();
+        return Ok(());
+    };
+    match command {
         Command::Dictionary(DictionaryCommand::Build(args)) => run_build(args),
         Command::Amplify(a) => {
             let s = amplify::run(&amplify::AmplifyArgs {
