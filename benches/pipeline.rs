@@ -57,11 +57,11 @@ fn bench(c: &mut Criterion) {
     let weights = MatchWeights::default();
 
     for derived in [false, true] {
-        let dict = default_dictionary(&base, cell_m, derived);
+        let dict = std::sync::Arc::new(default_dictionary(&base, cell_m, derived));
         let label = if derived { "default" } else { "elevation-only" };
 
         // Matching: low patches of the real terrain as queries.
-        let matcher = Matcher::new(&dict, &weights).expect("matcher");
+        let matcher = Matcher::new(dict.clone(), &weights).expect("matcher");
         let lo = dict.lo_patch();
         let queries: Vec<Query> = (0..1024)
             .map(|k| {
@@ -102,7 +102,7 @@ fn bench(c: &mut Criterion) {
         g.finish();
 
         // One amplification level: output windows of the real terrain.
-        let amp = Amplifier::new(&dict, &weights).expect("amplifier");
+        let amp = Amplifier::new(dict.clone(), &weights).expect("amplifier");
         let mut g = c.benchmark_group(format!("amplify_level/{label}"));
         for side in [256usize, 1024] {
             let out = Window::new(1000, 1200, side, side);

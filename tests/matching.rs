@@ -1,6 +1,8 @@
 //! Matching: the fast matcher returns exactly the atom of the naive full scan (ties → lowest
 //! index), the elevation term preserves orientation, and weights are validated.
 
+use std::sync::Arc;
+
 use proptest::prelude::*;
 use terrasynth::dictionary::matching::{best_match_naive, unit_centred, MatchScratch, Query};
 use terrasynth::dictionary::{
@@ -137,7 +139,7 @@ proptest! {
             slope: ws,
             layers: vec![("log_area".into(), wl), ("soil".into(), wc)],
         };
-        let matcher = Matcher::new(&dict, &weights).unwrap();
+        let matcher = Matcher::new(Arc::new(dict.clone()), &weights).unwrap();
         let mut q = query_from(&qv, alt, slope, with_layers);
         if let Some(i) = copy_atom {
             // An exact atom as the query (ties with its duplicates).
@@ -155,7 +157,7 @@ proptest! {
 fn ties_go_to_the_lowest_index() {
     let dict = random_dictionary(10, &[1.0, -2.0, 0.5, 3.0, -1.5], 3);
     let matcher = Matcher::new(
-        &dict,
+        Arc::new(dict.clone()),
         &MatchWeights {
             elevation: 1.0,
             altitude: 0.0,
@@ -182,7 +184,7 @@ fn elevation_term_preserves_orientation() {
         slope: 0.0,
         layers: vec![],
     };
-    let matcher = Matcher::new(&dict, &w).unwrap();
+    let matcher = Matcher::new(Arc::new(dict.clone()), &w).unwrap();
     let atom = dict.lo_atom(7).to_vec();
     let neg: Vec<f32> = atom.iter().map(|v| -v).collect();
     let mut s = MatchScratch::default();
@@ -209,7 +211,7 @@ fn elevation_term_preserves_orientation() {
 #[test]
 fn invalid_weights_are_rejected() {
     let dict = random_dictionary(4, &[1.0, 2.0], 0);
-    let bad = |w: MatchWeights| Matcher::new(&dict, &w).is_err();
+    let bad = |w: MatchWeights| Matcher::new(Arc::new(dict.clone()), &w).is_err();
     assert!(bad(MatchWeights {
         elevation: -1.0,
         ..MatchWeights::default()

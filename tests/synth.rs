@@ -40,7 +40,7 @@ proptest! {
         let dict = small_dictionary(3);
         let base = synthetic_terrain(96, 96, 9);
         let src = ClampedRaster { elevation: &base, layers: vec![] };
-        let amps = vec![Amplifier::new(&dict, &MatchWeights::default()).unwrap()];
+        let amps = vec![Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap()];
         let big = Window::new(-48, -48, 256, 256);
         let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
         let part_w = Window::new(c0, r0, w, h);
@@ -60,7 +60,7 @@ proptest! {
         let base = synthetic_terrain(80, 80, 2);
         let src = ClampedRaster { elevation: &base, layers: vec![] };
         let weights = MatchWeights::default();
-        let amps = vec![Amplifier::new(&dict, &weights).unwrap(), Amplifier::new(&dict, &weights).unwrap()];
+        let amps = vec![Amplifier::new(dict.clone(), &weights).unwrap(), Amplifier::new(dict.clone(), &weights).unwrap()];
         let big = Window::new(-32, -32, 420, 420);
         let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
         let part_w = Window::new(c0, r0, w, h);
@@ -88,8 +88,8 @@ fn result_is_identical_with_one_and_several_threads() {
             };
             let w = MatchWeights::default();
             let amps = vec![
-                Amplifier::new(&dict, &w).unwrap(),
-                Amplifier::new(&dict, &w).unwrap(),
+                Amplifier::new(dict.clone(), &w).unwrap(),
+                Amplifier::new(dict.clone(), &w).unwrap(),
             ];
             amplify_chain(&amps, &src, Window::new(0, 0, 256, 256), 100.0).unwrap()
         })
@@ -115,8 +115,8 @@ fn two_levels_box_average_back_to_the_input() {
     };
     let w = MatchWeights::default();
     let amps = vec![
-        Amplifier::new(&dict, &w).unwrap(),
-        Amplifier::new(&dict, &w).unwrap(),
+        Amplifier::new(dict.clone(), &w).unwrap(),
+        Amplifier::new(dict.clone(), &w).unwrap(),
     ];
     let out = amplify_chain(&amps, &src, Window::new(0, 0, 256, 256), 100.0).unwrap();
     let back = box2(&box2(&out.elevation));
@@ -143,7 +143,7 @@ fn flat_input_stays_flat_and_finite() {
         layers: vec![],
     };
     let w = MatchWeights::default();
-    let amps = vec![Amplifier::new(&dict, &w).unwrap()];
+    let amps = vec![Amplifier::new(dict.clone(), &w).unwrap()];
     let out = amplify_chain(&amps, &src, Window::new(0, 0, 80, 80), 50.0).unwrap();
     assert!(
         out.elevation.iter().all(|v| (v - 1234.5).abs() < 1e-2),
@@ -154,7 +154,7 @@ fn flat_input_stays_flat_and_finite() {
 #[test]
 fn parent_too_small_is_an_error() {
     let dict = small_dictionary(8);
-    let amp = Amplifier::new(&dict, &MatchWeights::default()).unwrap();
+    let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
     let out = Window::new(0, 0, 32, 32);
     let need = amp.parent_window_for(out);
     let short = Window::new(need.col0 + 1, need.row0, need.cols - 1, need.rows);
@@ -174,7 +174,7 @@ fn parent_too_small_is_an_error() {
 fn parent_window_is_what_amplify_reads() {
     // Values outside the announced parent window must not matter: poison them.
     let dict = small_dictionary(9);
-    let amp = Amplifier::new(&dict, &MatchWeights::default()).unwrap();
+    let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
     let out = Window::new(13, -7, 40, 33);
     let need = amp.parent_window_for(out);
     let base = synthetic_terrain(200, 200, 4);

@@ -2,6 +2,7 @@
 //! GeoTIFF with the same bounds and `2^N` times finer cells (plus one GeoTIFF per extra layer).
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use ndarray::Array2;
@@ -61,7 +62,7 @@ pub fn load_dictionary(path: &Path) -> Result<Dictionary, CliError> {
 
 /// Amplifies `grid` by `levels` levels; returns the elevation grid and the extra layers.
 pub fn amplify_grid(
-    dict: &Dictionary,
+    dict: &Arc<Dictionary>,
     weights: &MatchWeights,
     grid: &Grid,
     levels: u32,
@@ -94,7 +95,7 @@ pub fn amplify_grid(
         layers: derived.iter().map(|(n, a)| (n.clone(), a)).collect(),
     };
     let amps = (0..levels)
-        .map(|_| Amplifier::new(dict, weights))
+        .map(|_| Amplifier::new(dict.clone(), weights))
         .collect::<Result<Vec<_>, _>>()?;
     let factor = 1usize << levels;
     let out = Window::new(0, 0, grid.cols() * factor, grid.rows() * factor);
@@ -130,7 +131,7 @@ pub fn layer_path(output: &Path, name: &str) -> PathBuf {
 /// Runs `amplify`.
 pub fn run(args: &AmplifyArgs) -> Result<AmplifySummary, CliError> {
     let start = Instant::now();
-    let dict = load_dictionary(&args.dictionary)?;
+    let dict = Arc::new(load_dictionary(&args.dictionary)?);
     let raster = read_raster_file(&args.input, None, &ReadLimits::default())?;
     let grid = raster
         .elevation()

@@ -15,6 +15,8 @@
 //! and vectorises without changing the per-atom summation order, then prunes atoms whose upper
 //! bound cannot beat the best full score, and scores the rest with the same [`score_atom`].
 
+use std::sync::Arc;
+
 use serde::{Deserialize, Serialize};
 
 use super::atoms::{Dictionary, LayerKind};
@@ -340,8 +342,8 @@ fn combine(
 
 /// Prepared dictionary for fast exact matching.
 #[derive(Clone, Debug)]
-pub struct Matcher<'d> {
-    dict: &'d Dictionary,
+pub struct Matcher {
+    dict: Arc<Dictionary>,
     weights: ResolvedWeights,
     prepared: PreparedLayers,
     /// Low elevation atoms transposed: `lo² × n_pad`, dimension-major, atoms padded with zeros to
@@ -413,10 +415,10 @@ pub struct MatchScratch {
     class: Vec<f32>,
 }
 
-impl<'d> Matcher<'d> {
+impl Matcher {
     /// Prepares `dict` for matching with `weights`.
-    pub fn new(dict: &'d Dictionary, weights: &MatchWeights) -> Result<Self, MatchError> {
-        let weights = ResolvedWeights::resolve(weights, dict)?;
+    pub fn new(dict: Arc<Dictionary>, weights: &MatchWeights) -> Result<Self, MatchError> {
+        let weights = ResolvedWeights::resolve(weights, &dict)?;
         let lo2 = dict.lo_patch() * dict.lo_patch();
         let n = dict.n_atoms;
         let n_pad = n.div_ceil(ATOM_BLOCK) * ATOM_BLOCK;
@@ -427,20 +429,20 @@ impl<'d> Matcher<'d> {
             }
         }
         Ok(Matcher {
+            prepared: PreparedLayers::new(&dict),
+            alt_range: min_max(&dict.mean_alt),
+            slope_range: min_max(&dict.mean_slope),
             dict,
-            prepared: PreparedLayers::new(dict),
             weights,
             lo_t,
             n_pad,
             avx2: avx2_available(),
-            alt_range: min_max(&dict.mean_alt),
-            slope_range: min_max(&dict.mean_slope),
         })
     }
 
     /// The dictionary being matched against.
-    pub fn dictionary(&self) -> &'d Dictionary {
-        self.dict
+    pub fn dictionary(&self) -> &Dictionary {
+        &self.dict
     }
 
     /// The resolved, normalised weights.
@@ -491,7 +493,7 @@ impl<'d> Matcher<'d> {
         }
         let mut best_score = combine(
             w,
-            self.dict,
+            &self.dict,
             &self.prepared,
             q,
             s,
@@ -511,7 +513,7 @@ impl<'d> Matcher<'d> {
             }
             let sc = combine(
                 w,
-                self.dict,
+                &self.dict,
                 &self.prepared,
                 q,
                 s,
@@ -532,7 +534,7 @@ impl<'d> Matcher<'d> {
         let elev_dot = dot(&q.elevation, self.dict.lo_atom(i));
         combine(
             &self.weights,
-            self.dict,
+            &self.dict,
             &self.prepared,
             q,
             self.sigmas(q),
@@ -545,7 +547,7 @@ impl<'d> Matcher<'d> {
 
 /// Reference implementation: scores every atom with the plain formula and returns the first
 /// index of the maximum score, with its elevation dot product.
-pub fn best_match_naive(matcher: &Matcher<'_>, q: &Query) -> (usize, f32) {
+pub fn best_match_naive(matcher: &Matcher, q: &Query) -> (usize, f32) {
     let dict = matcher.dictionary();
     let mut best = 0usize;
     let mut best_score = f32::NEG_INFINITY;

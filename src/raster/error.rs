@@ -47,3 +47,21 @@ pub enum RasterError {
     #[error("layer mismatch: {0}")]
     LayerMismatch(String),
 }
+
+impl RasterError {
+    /// A [`RasterError::Malformed`] for `format`.
+    pub fn malformed(format: &'static str, detail: impl Into<String>) -> Self {
+        RasterError::Malformed {
+            format,
+            detail: detail.into(),
+        }
+    }
+
+    /// A [`RasterError::Unsupported`] for `format`.
+    pub fn unsupported(format: &'static str, detail: impl Into<String>) -> Self {
+        RasterError::Unsupported {
+            format,
+            detail: detail.into(),
+        }
+    }
+}

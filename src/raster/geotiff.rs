@@ -44,17 +44,11 @@ const PIXEL_IS_POINT: u16 = 2;
 const SUPPORTED_COMPRESSIONS: [u16; 5] = [1, 5, 8, 32773, 32946];
 
 fn malformed(detail: impl Into<String>) -> RasterError {
-    RasterError::Malformed {
-        format: FORMAT,
-        detail: detail.into(),
-    }
+    RasterError::malformed(FORMAT, detail)
 }
 
 fn unsupported(detail: impl Into<String>) -> RasterError {
-    RasterError::Unsupported {
-        format: FORMAT,
-        detail: detail.into(),
-    }
+    RasterError::unsupported(FORMAT, detail)
 }
 
 /// Maps a `tiff` crate error to a [`RasterError`]. `dims` are the image dimensions when known, so
@@ -533,7 +527,7 @@ pub fn write_geotiff<W: Write + Seek>(grid: &Grid, out: W) -> Result<(), RasterE
     };
     let mut enc = TiffEncoder::new(out)
         .map_err(write_err)?
-        .with_compression(Compression::Deflate(DeflateLevel::Balanced));
+        .with_compression(Compression::Deflate(DeflateLevel::Fast));
     let mut image = enc
         .new_image::<colortype::Gray32Float>(width, height)
         .map_err(write_err)?;

@@ -21,17 +21,11 @@ const FORMAT: &str = "OpenEXR";
 pub const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
 fn malformed(detail: impl Into<String>) -> RasterError {
-    RasterError::Malformed {
-        format: FORMAT,
-        detail: detail.into(),
-    }
+    RasterError::malformed(FORMAT, detail)
 }
 
 fn unsupported(detail: impl Into<String>) -> RasterError {
-    RasterError::Unsupported {
-        format: FORMAT,
-        detail: detail.into(),
-    }
+    RasterError::unsupported(FORMAT, detail)
 }
 
 fn map_exr_error(err: exr::error::Error) -> RasterError {

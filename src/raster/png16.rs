@@ -13,17 +13,11 @@ use super::limits::ReadLimits;
 const FORMAT: &str = "PNG";
 
 fn malformed(detail: impl Into<String>) -> RasterError {
-    RasterError::Malformed {
-        format: FORMAT,
-        detail: detail.into(),
-    }
+    RasterError::malformed(FORMAT, detail)
 }
 
 fn unsupported(detail: impl Into<String>) -> RasterError {
-    RasterError::Unsupported {
-        format: FORMAT,
-        detail: detail.into(),
-    }
+    RasterError::unsupported(FORMAT, detail)
 }
 
 fn map_png_error(err: png::DecodingError) -> RasterError {

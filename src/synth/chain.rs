@@ -56,7 +56,7 @@ impl BaseSource for ClampedRaster<'_> {
 
 /// The windows each level must compute so that level `levels.len()` covers `out`:
 /// element 0 is the base window, the last is `out`.
-pub fn chain_windows(levels: &[Amplifier<'_>], out: Window) -> Vec<Window> {
+pub fn chain_windows(levels: &[Amplifier], out: Window) -> Vec<Window> {
     let mut windows = vec![out];
     for amp in levels.iter().rev() {
         let next = amp.parent_window_for(windows[windows.len() - 1]);
@@ -70,7 +70,7 @@ pub fn chain_windows(levels: &[Amplifier<'_>], out: Window) -> Vec<Window> {
 /// the window the next needs, ending with `out` at the last level. `base_cell_m` is the metric cell
 /// size of level 0; each level halves it.
 pub fn amplify_chain(
-    levels: &[Amplifier<'_>],
+    levels: &[Amplifier],
     base: &dyn BaseSource,
     out: Window,
     base_cell_m: f64,

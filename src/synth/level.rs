@@ -11,6 +11,8 @@
 //! box averages reproduce the parent: one smooth pass (bilinear up-sampling of
 //! `F_{L−1} − Down(F_L)`) followed by one exact pass (nearest up-sampling of the remainder).
 
+use std::sync::Arc;
+
 use ndarray::{s, Array2};
 use rayon::prelude::*;
 
@@ -60,9 +62,9 @@ struct LatticeRange {
 
 /// One amplification level bound to a dictionary and matching weights.
 #[derive(Debug)]
-pub struct Amplifier<'d> {
-    matcher: Matcher<'d>,
-    dict: &'d Dictionary,
+pub struct Amplifier {
+    matcher: Matcher,
+    dict: Arc<Dictionary>,
     patch: usize,
     step: usize,
     /// `patch × patch` blending weights `α`.
@@ -110,9 +112,9 @@ fn upsample_patch(lo_patch: &[f32], lo: usize, out: &mut [f32]) {
     }
 }
 
-impl<'d> Amplifier<'d> {
+impl Amplifier {
     /// Prepares an amplifier. The dictionary's patch must be a multiple of 4 and at least 8.
-    pub fn new(dict: &'d Dictionary, weights: &MatchWeights) -> Result<Self, SynthError> {
+    pub fn new(dict: Arc<Dictionary>, weights: &MatchWeights) -> Result<Self, SynthError> {
         let patch = dict.patch();
         if patch < 8 || patch % 4 != 0 {
             return Err(SynthError::PatchSize(patch));
@@ -167,7 +169,7 @@ impl<'d> Amplifier<'d> {
             inv_rms,
             smooth,
             detail,
-            matcher: Matcher::new(dict, weights)?,
+            matcher: Matcher::new(dict.clone(), weights)?,
             dict,
             patch,
             step,
@@ -177,8 +179,8 @@ impl<'d> Amplifier<'d> {
     }
 
     /// The dictionary this level uses.
-    pub fn dictionary(&self) -> &'d Dictionary {
-        self.dict
+    pub fn dictionary(&self) -> &Dictionary {
+        &self.dict
     }
 
     /// The parent pixels `[k0, k1)` under the hi-res span `[x0, x1)`.
@@ -410,7 +412,7 @@ impl<'d> Amplifier<'d> {
         let bw = Self::blend_window(out);
         let lr = self.lattice_range(bw);
         let prims = self.match_primitives(&parent, lr, parent_cell_m);
-        let dict = self.dict;
+        let dict = &*self.dict;
         let blended = self.blend(bw, lr, &prims, Blended::Elevation);
         let elevation = correct(&blended, bw, &parent.elevation, parent.window, out);
         let nl = dict.layers.len();

@@ -1,6 +1,8 @@
 //! Shared fixtures of the integration tests: synthetic terrain and small dictionaries.
 #![allow(dead_code)]
 
+use std::sync::Arc;
+
 use ndarray::Array2;
 use terrasynth::dictionary::build::{build, BuildOptions, Exemplar};
 use terrasynth::dictionary::{Dictionary, Learning};
@@ -31,7 +33,7 @@ pub fn synthetic_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
 }
 
 /// A small dictionary built from synthetic terrain (patch 16, stride 4, 64 atoms).
-pub fn small_dictionary(seed: u64) -> Dictionary {
+pub fn small_dictionary(seed: u64) -> Arc<Dictionary> {
     let z = synthetic_terrain(160, 160, seed);
     let ex = Exemplar {
         elevation: z,
@@ -46,5 +48,5 @@ pub fn small_dictionary(seed: u64) -> Dictionary {
         learning: Learning::Medoids { iterations: 3 },
         seed,
     };
-    build(&[ex], &opts, &mut |_, _| {}).expect("build a small dictionary")
+    Arc::new(build(&[ex], &opts, &mut |_, _| {}).expect("build a small dictionary"))
 }
