@@ -1,0 +1,432 @@
+#!/usr/bin/env bash
+# Load test of the terrasynth tile server on this machine, over loopback only (127.0.0.1).
+#
+# What it does, in order:
+#   1. Makes sure `oha` (an HTTP load generator) is on PATH; if not, installs it with
+#      `cargo install oha --locked` (it says so first).
+#   2. Builds the release binary with `cargo build --release` (skip with --no-build).
+#   3. Writes a deterministic pan-and-zoom trace with scripts/make_trace.py: the tile URLs a web map
+#      requests while a user pans a 4x3-tile viewport over the Tien Shan (Talas range, Bishkek) and
+#      zooms in from 9 to 14, each tile once, elevation mostly, some hillshade and @2x. Replay a
+#      recorded URL file instead with --trace FILE (the scheme and host of its URLs are replaced by
+#      http://127.0.0.1:PORT; the paths and queries are kept).
+#   4. Cold run: starts a fresh server (empty tile caches; the dictionary store under
+#      target/loadtest-store is kept between runs, so only the first run ever builds it), waits for
+#      /healthz, and replays the trace once, in order, one request at a time over one connection
+#      (curl), like a single map client. Reports per-request latency p50/p99 and req/s, and the same
+#      for the zoom-14 requests of that replay.
+#   5. Warm run, on the same server: replays the trace once more (everything is then cached), then
+#      runs oha for --duration seconds with --connections connections over the trace's URLs.
+#   6. Cold zoom 14: a second fresh server replays only the trace's zoom-14 URLs, in order, with
+#      nothing cached (every tile pays for its whole chain of levels above the base).
+#   7. Reads each server's peak RSS (VmHWM in /proc/PID/status) before stopping it, and prints a
+#      markdown table (run, requests, errors, req/s, p50, p99, peak RSS) with the configured cache_mb;
+#      the table is also written to target/loadtest-report.md. Server logs, the trace, per-request
+#      timings, oha's JSON and a /metrics snapshot are kept in target/loadtest/.
+#
+# Servers it starts are stopped on exit (also on errors and Ctrl-C); nothing is left running. The
+# whole test takes a few minutes (the cold replays dominate; each request is capped by
+# --request-timeout and each replay by --replay-timeout).
+#
+# Usage: scripts/loadtest.sh [options]
+#   --port N             port on 127.0.0.1 the servers listen on (default 18080)
+#   --duration S         seconds of the warm oha run (default 10)
+#   --connections N      connections of the warm oha run (default 32)
+#   --trace FILE         replay this URL file (one URL or path a line) instead of the generated trace
+#   --no-build           do not run `cargo build --release`
+#   --bin PATH           server binary (default $CARGO_TARGET_DIR or target, /release/terrasynth)
+#   --config FILE        server configuration (default config/default.toml)
+#   --cache-mb N         TERRASYNTH_CACHE_MB for the servers (default: $TERRASYNTH_CACHE_MB, else the
+#                        config's cache_mb)
+#   --store-dir DIR      dictionary store reused between runs (default target/loadtest-store)
+#   --request-timeout S  cap of one request in the cold replays (default 60)
+#   --replay-timeout S   cap of one whole replay with curl (default 600)
+#   --health-timeout S   how long to wait for /healthz after a start (default 300: the first
+#                        start ever builds the dictionary)
+#   -h, --help           this help
+#
+# Needs bash, curl, python3 (standard library only), cargo (to build and to install oha).
+
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+
+PORT=18080
+DURATION=10
+CONNECTIONS=32
+TRACE_IN=""
+BUILD=1
+BIN=""
+CONFIG="$ROOT/config/default.toml"
+CACHE_MB="${TERRASYNTH_CACHE_MB:-}"
+STORE_DIR="$ROOT/target/loadtest-store"
+REQUEST_TIMEOUT=60
+REPLAY_TIMEOUT=600
+HEALTH_TIMEOUT=300
+
+usage() {
+    # Print the header comment (from the second line to the first blank line) without the '# '.
+    sed -n '2,/^$/p' "${BASH_SOURCE[0]}" | sed -e 's/^# \{0,1\}//'
+}
+
+die() {
+    echo "loadtest: error: $*" >&2
+    exit 1
+}
+
+log() {
+    echo "loadtest: $*" >&2
+}
+
+need_value() {
+    [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value (see --help)"
+}
+
+while [[ $# -gt 0 ]]; do
+    case "$1" in
+        --port) need_value "$@"; PORT="$2"; shift 2 ;;
+        --duration) need_value "$@"; DURATION="$2"; shift 2 ;;
+        --connections) need_value "$@"; CONNECTIONS="$2"; shift 2 ;;
+        --trace) need_value "$@"; TRACE_IN="$2"; shift 2 ;;
+        --no-build) BUILD=0; shift ;;
+        --bin) need_value "$@"; BIN="$2"; shift 2 ;;
+        --config) need_value "$@"; CONFIG="$2"; shift 2 ;;
+        --cache-mb) need_value "$@"; CACHE_MB="$2"; shift 2 ;;
+        --store-dir) need_value "$@"; STORE_DIR="$2"; shift 2 ;;
+        --request-timeout) need_value "$@"; REQUEST_TIMEOUT="$2"; shift 2 ;;
+        --replay-timeout) need_value "$@"; REPLAY_TIMEOUT="$2"; shift 2 ;;
+        --health-timeout) need_value "$@"; HEALTH_TIMEOUT="$2"; shift 2 ;;
+        -h | --help) usage; exit 0 ;;
+        *) die "unknown argument '$1' (see --help)" ;;
+    esac
+done
+
+is_positive() {
+    [[ "$1" =~ ^[1-9][0-9]*$ ]]
+}
+
+if ! is_positive "$PORT" || ((PORT > 65535)); then
+    die "--port must be 1-65535, got '$PORT'"
+fi
+for v in DURATION CONNECTIONS REQUEST_TIMEOUT REPLAY_TIMEOUT HEALTH_TIMEOUT; do
+    if ! is_positive "${!v}"; then
+        opt="${v,,}"
+        die "--${opt//_/-} must be a positive integer, got '${!v}'"
+    fi
+done
+[[ -z "$TRACE_IN" || -r "$TRACE_IN" ]] || die "trace file '$TRACE_IN' is not readable"
+[[ -r "$CONFIG" ]] || die "configuration '$CONFIG' is not readable"
+if [[ -z "$CACHE_MB" ]]; then
+    CACHE_MB="$(awk -F= '/^[[:space:]]*cache_mb[[:space:]]*=/ { gsub(/[[:space:]"]/, "", $2); print $2; exit }' "$CONFIG")"
+    CACHE_MB="${CACHE_MB:-512}"
+fi
+[[ "$CACHE_MB" =~ ^[0-9]+$ ]] || die "--cache-mb must be a non-negative integer, got '$CACHE_MB'"
+
+for tool in curl python3; do
+    command -v "$tool" >/dev/null || die "'$tool' is required but not on PATH"
+done
+
+# Always loopback: the servers bind it and every request goes to it.
+HOST=127.0.0.1
+BASE="http://$HOST:$PORT"
+WORK="$ROOT/target/loadtest"
+REPORT="$ROOT/target/loadtest-report.md"
+mkdir -p "$WORK" "$STORE_DIR"
+STORE_DIR="$(cd "$STORE_DIR" && pwd)"
+CONFIG="$(cd "$(dirname "$CONFIG")" && pwd)/$(basename "$CONFIG")"
+
+# ---------------------------------------------------------------------------------------------
+# Server processes: started in the background, stopped on exit whatever happens.
+
+SERVER_PID=""
+SERVER_RSS_KB=""
+
+stop_server() {
+    # Records the peak RSS of the running server in SERVER_RSS_KB, then stops it.
+    [[ -n "$SERVER_PID" ]] || return 0
+    local pid="$SERVER_PID"
+    SERVER_PID=""
+    SERVER_RSS_KB="$(awk '/^VmHWM:/ { print $2 }' "/proc/$pid/status" 2>/dev/null || true)"
+    if kill -0 "$pid" 2>/dev/null; then
+        kill -TERM "$pid" 2>/dev/null || true
+        local i
+        for ((i = 0; i < 100; i++)); do
+            kill -0 "$pid" 2>/dev/null || break
+            sleep 0.1
+        done
+        if kill -0 "$pid" 2>/dev/null; then
+            log "server $pid did not stop in 10 s after SIGTERM; sending SIGKILL"
+            kill -KILL "$pid" 2>/dev/null || true
+        fi
+    fi
+    wait "$pid" 2>/dev/null || true
+}
+
+cleanup() {
+    local rc=$?
+    stop_server
+    exit "$rc"
+}
+trap cleanup EXIT
+trap 'exit 130' INT
+trap 'exit 143' TERM
+
+port_in_use() {
+    # curl exits 7 when nothing accepts the connection.
+    local rc=0
+    curl -s -o /dev/null --max-time 2 "$BASE/" || rc=$?
+    [[ $rc -ne 7 ]]
+}
+
+start_server() {
+    # start_server NAME: starts a fresh server (empty caches) and waits until /healthz answers 200.
+    local name="$1"
+    local logfile="$WORK/server-$name.log"
+    port_in_use && die "something already listens on $HOST:$PORT; pick another --port"
+    log "starting server '$name' on $BASE (cache_mb=$CACHE_MB, store $STORE_DIR, log $logfile)"
+    (
+        cd "$ROOT"
+        exec env TERRASYNTH_LISTEN="$HOST:$PORT" TERRASYNTH_CACHE_MB="$CACHE_MB" \
+            TERRASYNTH_STORE_DIR="$STORE_DIR" \
+            "$BIN" serve --config "$CONFIG" --listen "$HOST:$PORT"
+    ) >"$logfile" 2>&1 &
+    SERVER_PID=$!
+    local start=$SECONDS
+    until curl -fs -o /dev/null --max-time 2 "$BASE/healthz"; do
+        if ! kill -0 "$SERVER_PID" 2>/dev/null; then
+            wait "$SERVER_PID" 2>/dev/null || true
+            SERVER_PID=""
+            tail -n 20 "$logfile" >&2 || true
+            die "server '$name' exited before becoming healthy (log: $logfile)"
+        fi
+        if ((SECONDS - start >= HEALTH_TIMEOUT)); then
+            tail -n 20 "$logfile" >&2 || true
+            die "server '$name' not healthy after ${HEALTH_TIMEOUT}s (log: $logfile)"
+        fi
+        sleep 0.2
+    done
+    log "server '$name' (pid $SERVER_PID) healthy after $((SECONDS - start)) s"
+}
+
+# ---------------------------------------------------------------------------------------------
+# Measurements. Every result is one table row: run|requests|errors|req/s|p50 ms|p99 ms|rss.
+
+ROWS=()
+
+# stats FILE: FILE has lines "CODE SECONDS URL"; prints "requests errors p50_ms p99_ms"
+# (nearest-rank percentiles; errors are responses other than 200 and failed transfers).
+stats() {
+    local file="$1"
+    local n errors
+    n=$(wc -l <"$file")
+    errors=$(awk '$1 != "200" { e++ } END { print e + 0 }' "$file")
+    if ((n == 0)); then
+        echo "0 0 - -"
+        return
+    fi
+    awk '{ print $2 * 1000 }' "$file" | sort -g | awk -v n="$n" -v e="$errors" '
+        function rank(p,   r) { r = int(p * n); if (r < p * n) r++; if (r < 1) r = 1; return r }
+        { v[NR] = $1 }
+        END { printf "%d %d %.1f %.1f\n", n, e, v[rank(0.50)], v[rank(0.99)] }'
+}
+
+# replay NAME URLFILE: requests the URLs in order over one connection, one at a time, and writes
+# "CODE SECONDS URL" lines to $WORK/NAME.timings; sets REPLAY_WALL (seconds, wall clock).
+REPLAY_WALL=0
+replay() {
+    local name="$1" urls="$2"
+    local cfg="$WORK/$name.curl" out="$WORK/$name.timings"
+    local n
+    n=$(wc -l <"$urls")
+    awk '{ printf "url = \"%s\"\noutput = \"/dev/null\"\n", $0 }' "$urls" >"$cfg"
+    log "replaying $n URLs in order, concurrency 1 ($name)"
+    local t0 t1 rc=0
+    t0=$(date +%s.%N)
+    timeout "$REPLAY_TIMEOUT" curl -s --max-time "$REQUEST_TIMEOUT" --config "$cfg" \
+        -w '%{http_code} %{time_total} %{url_effective}\n' >"$out" || rc=$?
+    t1=$(date +%s.%N)
+    REPLAY_WALL=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
+    if ((rc == 124)); then
+        log "warning: replay '$name' stopped after --replay-timeout ${REPLAY_TIMEOUT}s; $(wc -l <"$out") of $n requests done"
+    elif ((rc != 0)); then
+        log "warning: curl exited $rc during '$name' (failed requests count as errors)"
+    fi
+}
+
+# add_row RUN TIMINGS WALL: adds a row from a timings file and the wall time it took.
+add_row() {
+    local run="$1" file="$2" wall="$3"
+    local n errors p50 p99 rps
+    read -r n errors p50 p99 < <(stats "$file")
+    rps=$(awk -v n="$n" -v w="$wall" 'BEGIN { if (w > 0) printf "%.1f", n / w; else print "-" }')
+    ROWS+=("$run|$n|$errors|$rps|$p50|$p99|RSS")
+    log "$run: $n requests, $errors errors, $rps req/s, p50 $p50 ms, p99 $p99 ms"
+}
+
+# set_rss KB: fills the peak RSS of the rows added since the last call.
+set_rss() {
+    local kb="$1" mib i
+    if [[ -n "$kb" ]]; then
+        mib=$(awk -v k="$kb" 'BEGIN { printf "%.0f MiB", k / 1024 }')
+    else
+        mib="?"
+    fi
+    for i in "${!ROWS[@]}"; do
+        ROWS[i]="${ROWS[i]/%|RSS/|$mib}"
+    done
+}
+
+# ---------------------------------------------------------------------------------------------
+# 1. oha.
+
+if ! command -v oha >/dev/null; then
+    if [[ -x "${CARGO_HOME:-$HOME/.cargo}/bin/oha" ]]; then
+        PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
+    else
+        command -v cargo >/dev/null || die "oha is not on PATH and cargo is missing to install it"
+        log "oha is not on PATH: installing it with 'cargo install oha --locked' (a few minutes, once)"
+        cargo install oha --locked
+        PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
+        command -v oha >/dev/null || die "oha still not on PATH after cargo install"
+    fi
+fi
+OHA_HELP="$(oha --help 2>&1 || true)"
+log "using $(oha --version 2>/dev/null || echo oha) at $(command -v oha)"
+
+# 2. Build.
+
+if [[ -z "$BIN" ]]; then
+    BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/terrasynth"
+fi
+if ((BUILD)); then
+    log "building the release binary (cargo build --release)"
+    (cd "$ROOT" && cargo build --release)
+fi
+[[ -x "$BIN" ]] || die "server binary '$BIN' not found (build it, or pass --bin PATH)"
+log "server binary: $BIN"
+
+# 3. Trace.
+
+TRACE="$WORK/trace.urls"
+if [[ -n "$TRACE_IN" ]]; then
+    # Keep the path and query of each URL, put our loopback origin in front; skip blank lines and
+    # comments.
+    sed -e 's/\r$//' -e '/^[[:space:]]*$/d' -e '/^[[:space:]]*#/d' \
+        -e 's#^[a-zA-Z][a-zA-Z0-9+.-]*://[^/]*##' -e 's#^\([^/]\)#/\1#' -e "s#^#$BASE#" \
+        "$TRACE_IN" >"$TRACE"
+    TRACE_DESC="$TRACE_IN"
+else
+    python3 "$ROOT/scripts/make_trace.py" --base-url "$BASE" --stats >"$TRACE" 2>"$WORK/trace.stats"
+    sed -e 's/^/loadtest: trace: /' "$WORK/trace.stats" >&2
+    TRACE_DESC="scripts/make_trace.py (pan-and-zoom, z9-14)"
+fi
+TRACE_N=$(wc -l <"$TRACE")
+((TRACE_N > 0)) || die "the trace is empty"
+TRACE_Z14="$WORK/trace-z14.urls"
+grep -E '/14/[0-9]+/[0-9]+[^/]*$' "$TRACE" >"$TRACE_Z14" || true
+log "trace: $TRACE_N URLs ($(wc -l <"$TRACE_Z14") at zoom 14) in $TRACE"
+
+# 4-5. Cold then warm on one server.
+
+start_server main
+replay cold "$TRACE"
+add_row "cold: trace in order, c=1" "$WORK/cold.timings" "$REPLAY_WALL"
+if [[ -s "$TRACE_Z14" ]]; then
+    grep -E '/14/[0-9]+/[0-9]+[^/]*$' "$WORK/cold.timings" >"$WORK/cold-z14.timings" || true
+    # The wall time of the z14 subset is the sum of its request times (requests are sequential).
+    wall=$(awk '{ s += $2 } END { printf "%.3f", s }' "$WORK/cold-z14.timings")
+    add_row "cold: z14 requests of that replay" "$WORK/cold-z14.timings" "$wall"
+fi
+
+replay warm-replay "$TRACE"
+add_row "warm: trace in order, c=1" "$WORK/warm-replay.timings" "$REPLAY_WALL"
+
+OHA_JSON="$WORK/warm-oha.json"
+oha_args=(-z "${DURATION}s" -c "$CONNECTIONS")
+if grep -q -- '--no-tui' <<<"$OHA_HELP"; then
+    oha_args+=(--no-tui)
+fi
+if grep -q -- '--output-format' <<<"$OHA_HELP"; then
+    oha_args+=(--output-format json)
+else
+    oha_args+=(-j)
+fi
+if grep -q -- '--urls-from-file' <<<"$OHA_HELP"; then
+    oha_args+=(--urls-from-file "$TRACE")
+    oha_desc="all $TRACE_N trace URLs"
+else
+    # Older oha takes one URL: use the middle URL of the trace.
+    one_url=$(sed -n "$(((TRACE_N + 1) / 2))p" "$TRACE")
+    oha_args+=("$one_url")
+    oha_desc="one URL ($one_url): this oha has no --urls-from-file"
+fi
+log "warm load: oha ${oha_args[*]}"
+oha_rc=0
+timeout $((DURATION + 60)) oha "${oha_args[@]}" >"$OHA_JSON" 2>"$WORK/warm-oha.stderr" </dev/null || oha_rc=$?
+((oha_rc == 0)) || { cat "$WORK/warm-oha.stderr" >&2; die "oha failed (exit $oha_rc)"; }
+read -r oha_n oha_err oha_rps oha_p50 oha_p99 < <(python3 - "$OHA_JSON" <<'EOF'
+import json, sys
+
+with open(sys.argv[1]) as f:
+    r = json.load(f)
+codes = r.get("statusCodeDistribution") or {}
+n = sum(int(v) for v in codes.values())
+ok = int(codes.get("200", 0))
+errors = sum(int(v) for v in (r.get("errorDistribution") or {}).values())
+pct = r.get("latencyPercentiles") or {}
+
+
+def ms(key):
+    v = pct.get(key)
+    return "-" if v is None else "%.1f" % (float(v) * 1000.0)
+
+
+print(n + errors, n - ok + errors, "%.1f" % float(r["summary"]["requestsPerSec"]), ms("p50"), ms("p99"))
+EOF
+)
+ROWS+=("warm: oha ${DURATION}s, c=$CONNECTIONS|$oha_n|$oha_err|$oha_rps|$oha_p50|$oha_p99|RSS")
+log "warm oha: $oha_n requests, $oha_err errors, $oha_rps req/s, p50 $oha_p50 ms, p99 $oha_p99 ms ($oha_desc)"
+
+curl -s --max-time 5 "$BASE/metrics" >"$WORK/metrics-main.txt" || log "warning: could not read /metrics"
+stop_server
+MAIN_RSS_KB="$SERVER_RSS_KB"
+set_rss "$MAIN_RSS_KB"
+
+# 6. Cold zoom 14 alone on a fresh server.
+
+if [[ -s "$TRACE_Z14" ]]; then
+    start_server z14
+    replay cold-z14-only "$TRACE_Z14"
+    add_row "cold: z14 URLs only, fresh server, c=1" "$WORK/cold-z14-only.timings" "$REPLAY_WALL"
+    stop_server
+    set_rss "$SERVER_RSS_KB"
+else
+    log "no zoom-14 URLs in the trace: skipping the cold z14 run"
+fi
+
+# 7. Report.
+
+commit="$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)"
+if [[ -n "$(git -C "$ROOT" status --porcelain --untracked-files=no 2>/dev/null)" ]]; then
+    commit="$commit (with local changes)"
+fi
+{
+    echo "# terrasynth load test"
+    echo
+    echo "- date: $(date -u '+%Y-%m-%d %H:%M:%S UTC'); commit $commit; $(nproc) CPUs; $(oha --version 2>/dev/null || echo oha)"
+    echo "- server: \`$BIN\`, cache_mb=$CACHE_MB, listening on $HOST:$PORT"
+    echo "- trace: $TRACE_DESC, $TRACE_N URLs, $(wc -l <"$TRACE_Z14") at zoom 14"
+    echo "- cold = freshly started server (empty tile caches; dictionary store reused from \`$STORE_DIR\`);"
+    echo "  c=1 = one request at a time over one connection (curl); warm oha: $oha_desc"
+    echo "- peak RSS = VmHWM of the server process of that run (the first four rows share one server)"
+    echo
+    echo "| run | requests | errors | req/s | p50 ms | p99 ms | peak RSS |"
+    echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+    for row in "${ROWS[@]}"; do
+        echo "| ${row//|/ | } |"
+    done
+} >"$REPORT"
+echo
+cat "$REPORT"
+echo
+log "report written to $REPORT; details in $WORK/"
