@@ -343,6 +343,10 @@ add_row "warm: trace in order, c=1" "$WORK/warm-replay.timings" "$REPLAY_WALL"
 
 OHA_JSON="$WORK/warm-oha.json"
 oha_args=(-z "${DURATION}s" -c "$CONNECTIONS")
+# Requests in flight at the deadline are waited for, not counted as errors.
+if grep -q -- '--wait-ongoing-requests-after-deadline' <<<"$OHA_HELP"; then
+    oha_args+=(-w)
+fi
 if grep -q -- '--no-tui' <<<"$OHA_HELP"; then
     oha_args+=(--no-tui)
 fi
@@ -352,6 +356,7 @@ else
     oha_args+=(-j)
 fi
 if grep -q -- '--urls-from-file' <<<"$OHA_HELP"; then
+    # A flag: the URL argument is then the file.
     oha_args+=(--urls-from-file "$TRACE")
     oha_desc="all $TRACE_N trace URLs"
 else
