@@ -8,7 +8,10 @@
 
 pub mod analysis;
 pub mod cli;
+pub mod config;
 pub mod dictionary;
 pub mod raster;
+pub mod server;
+pub mod store;
 pub mod synth;
 pub mod tiles;

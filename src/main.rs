@@ -32,6 +32,18 @@ enum Command {
     Eval(EvalCli),
     /// Cut a window out of a GeoTIFF, optionally box-down-sampling it.
     Crop(CropCli),
+    /// Serve tiles over HTTP (the default command).
+    Serve(ServeCli),
+}
+
+#[derive(Args, Default)]
+struct ServeCli {
+    /// Configuration file (default: config/default.toml, else the embedded defaults).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Address and port to listen on (overrides the configuration).
+    #[arg(long, value_name = "ADDR")]
+    listen: Option<String>,
 }
 
 #[derive(Subcommand)]
@@ -170,16 +182,28 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
     Ok(())
 }
 
+fn run_serve(args: ServeCli) -> Result<(), CliError> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=warn")),
+        )
+        .init();
+    let mut config = terrasynth::config::load(args.config.as_deref(), std::env::vars())?;
+    if let Some(listen) = args.listen {
+        config.server.listen = listen;
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| CliError::Usage(format!("cannot start the runtime: {e}")))?;
+    Ok(runtime.block_on(terrasynth::server::serve(config))?)
+}
+
 fn run(cli: Cli) -> Result<(), CliError> {
-    let Some(command) = cli.command else {
-        // The tile server becomes the default command once it exists; until then, show the help.
-        use clap::CommandFactory;
-        let mut cmd = Cli::command();
-        let _ = cmd.print_help();
-        println!();
-        return Ok(());
-    };
+    let command = cli.command.unwrap_or(Command::Serve(ServeCli::default()));
     match command {
+        Command::Serve(args) => run_serve(args),
         Command::Dictionary(DictionaryCommand::Build(args)) => run_build(args),
         Command::Amplify(a) => {
             let s = amplify::run(&amplify::AmplifyArgs {

@@ -178,7 +178,7 @@ pub fn run(
     let dict = build(&exemplars, &args.options, progress)?;
     let mut bytes = Vec::new();
     write_dictionary(&dict, &mut bytes)?;
-    write_atomically(output, &bytes)?;
+    crate::store::write_atomically(output, &bytes)?;
     Ok(BuildSummary {
         id: content_id(&dict)?,
         atoms: dict.n_atoms,
@@ -186,31 +186,6 @@ pub fn run(
         seconds: start.elapsed().as_secs_f64(),
         bytes: bytes.len(),
     })
-}
-
-/// Writes `bytes` to a temporary file beside `path`, then renames it over `path`, so that a crash
-/// never leaves a half-written file under the final name.
-pub fn write_atomically(path: &std::path::Path, bytes: &[u8]) -> Result<(), CliError> {
-    use std::io::Write;
-    let io = |source| CliError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let mut f = std::fs::File::create(&tmp).map_err(io)?;
-    f.write_all(bytes).map_err(io)?;
-    f.sync_all().map_err(io)?;
-    drop(f);
-    std::fs::rename(&tmp, path).map_err(io)?;
-    Ok(())
 }
 
 /// Parses `--learning`: `complete` or `medoids[:ITERATIONS]`.

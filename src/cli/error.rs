@@ -15,6 +15,15 @@ pub enum CliError {
     /// Building, reading or writing a dictionary failed.
     #[error(transparent)]
     Dictionary(#[from] DictionaryError),
+    /// The store failed.
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
+    /// The configuration could not be loaded.
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    /// The server failed.
+    #[error(transparent)]
+    Server(#[from] crate::server::ServerError),
     /// Amplification failed.
     #[error(transparent)]
     Synth(#[from] SynthError),

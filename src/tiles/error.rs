@@ -25,6 +25,19 @@ pub enum TileError {
         /// Deepest zoom served.
         max: u8,
     },
+    /// The tile lies wholly outside the world's bounds (a 404 for clients).
+    #[error("tile {z}/{x}/{y} lies outside the world")]
+    OutsideWorld {
+        /// Zoom level.
+        z: u8,
+        /// Tile column.
+        x: u32,
+        /// Tile row (from the north).
+        y: u32,
+    },
+    /// Amplification failed (an internal error).
+    #[error("synthesis failed: {0}")]
+    Synthesis(String),
     /// Tile bytes could not be produced.
     #[error("cannot encode tile: {0}")]
     Encode(String),

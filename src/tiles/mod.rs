@@ -1,7 +1,7 @@
 //! Tiles: the pure, socket-free parts of serving Web Mercator XYZ tiles — the tile math
 //! ([`mercator`]), sampling a georeferenced grid onto the Mercator pixel plane ([`resample`]),
 //! encoding tile bytes ([`encode`]: terrarium and mapbox Terrain-RGB PNG, grey and RGBA PNG,
-//! float32 OpenEXR) and TileJSON documents ([`tilejson`]).
+//! float32 OpenEXR), TileJSON documents ([`tilejson`]) and a world's tile pyramid ([`world`]).
 //!
 //! Everything here is deterministic: the bytes of a tile depend only on the inputs, never on the
 //! clock, a global RNG, thread count or CPU features.
@@ -11,6 +11,7 @@ pub mod error;
 pub mod mercator;
 pub mod resample;
 pub mod tilejson;
+pub mod world;
 
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
@@ -24,3 +25,4 @@ pub use mercator::{
 };
 pub use resample::mercator_window_from_grid;
 pub use tilejson::{TerrainEncoding, TileJson, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
+pub use world::{World, WorldParts, WorldStats};

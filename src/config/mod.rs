@@ -1,0 +1,382 @@
+//! Typed configuration: the server settings of `config/default.toml` (or the file given with
+//! `--config`), the world files it lists, and `TERRASYNTH_*` environment overrides. When no file
+//! is given and `config/default.toml` does not exist in the working directory, the copies embedded
+//! in the binary are used, so the binary serves the default world from anywhere. No global state:
+//! loading returns a value.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use thiserror::Error;
+
+use crate::dictionary::MatchWeights;
+
+/// The embedded copy of `config/default.toml`.
+pub const DEFAULT_TOML: &str = include_str!("../../config/default.toml");
+/// The embedded copy of `config/worlds/tienshan.toml`.
+pub const TIENSHAN_TOML: &str = include_str!("../../config/worlds/tienshan.toml");
+/// Where the default configuration file is looked for.
+pub const DEFAULT_PATH: &str = "config/default.toml";
+
+/// An error loading configuration.
+#[derive(Debug, Error)]
+pub enum ConfigError {
+    /// A file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A file is not valid TOML for its schema.
+    #[error("invalid configuration in {path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// What was wrong.
+        message: String,
+    },
+    /// An environment variable holds an invalid value.
+    #[error("invalid value for {name}: {message}")]
+    Env {
+        /// The variable.
+        name: String,
+        /// What was wrong.
+        message: String,
+    },
+    /// Values are individually valid but inconsistent.
+    #[error("invalid configuration: {0}")]
+    Invalid(String),
+}
+
+/// Server settings (`config/default.toml`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServerConfig {
+    /// Address and port to bind.
+    pub listen: String,
+    /// Capacity of each world's level-tile cache, MiB.
+    pub cache_mb: u64,
+    /// Directory of the on-disk store.
+    pub store_dir: PathBuf,
+    /// CORS origins (`*` for any).
+    pub cors_origins: Vec<String>,
+    /// `Cache-Control` of tile responses.
+    pub cache_control: String,
+    /// Tile computations running at once.
+    pub synth_concurrency: usize,
+    /// Tile requests allowed to wait for a computation slot (beyond: 503).
+    pub synth_queue: usize,
+    /// Request timeout, seconds.
+    pub request_timeout_s: u64,
+    /// World files, relative to the configuration file's directory.
+    pub worlds: Vec<String>,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        ServerConfig {
+            listen: "127.0.0.1:8080".into(),
+            cache_mb: 512,
+            store_dir: PathBuf::from("store"),
+            cors_origins: vec!["*".into()],
+            cache_control: "public, max-age=86400".into(),
+            synth_concurrency: 2,
+            synth_queue: 256,
+            request_timeout_s: 60,
+            worlds: vec!["worlds/tienshan.toml".into()],
+        }
+    }
+}
+
+/// How a world's dictionary is built.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct DictionaryConfig {
+    /// Exemplars: `embedded:tienshan` or GeoTIFF paths (relative to the world file).
+    pub exemplars: Vec<String>,
+    /// Number of atoms.
+    pub atoms: usize,
+    /// High-resolution patch side.
+    pub patch: usize,
+    /// Patch stride.
+    pub stride: usize,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for DictionaryConfig {
+    fn default() -> Self {
+        DictionaryConfig {
+            exemplars: vec![EMBEDDED_TIENSHAN.into()],
+            atoms: 256,
+            patch: 16,
+            stride: 8,
+            seed: 1,
+        }
+    }
+}
+
+/// The name of the embedded Tien Shan raster in `base` and `exemplars`.
+pub const EMBEDDED_TIENSHAN: &str = "embedded:tienshan";
+
+/// One world file.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WorldConfig {
+    /// URL name (letters, digits, `-`, `_`).
+    pub name: String,
+    /// Human title.
+    #[serde(default)]
+    pub title: String,
+    /// Attribution for map clients.
+    #[serde(default)]
+    pub attribution: String,
+    /// Base raster: `embedded:tienshan` or a GeoTIFF path (relative to the world file).
+    pub base: String,
+    /// Native zoom (derived from the base's cell size when absent).
+    #[serde(default)]
+    pub z_base: Option<u8>,
+    /// Deepest zoom served.
+    #[serde(default = "default_max_zoom")]
+    pub max_zoom: u8,
+    /// Elevation outside the base coverage, metres.
+    #[serde(default)]
+    pub fill_m: f32,
+    /// Dictionary build settings.
+    #[serde(default)]
+    pub dictionary: DictionaryConfig,
+    /// Matching weights.
+    #[serde(default)]
+    pub weights: MatchWeights,
+    /// Directory the world file's relative paths are resolved against (set when loading).
+    #[serde(skip)]
+    pub dir: PathBuf,
+}
+
+fn default_max_zoom() -> u8 {
+    16
+}
+
+/// The whole configuration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    /// Server settings.
+    pub server: ServerConfig,
+    /// Worlds, in file order.
+    pub worlds: Vec<WorldConfig>,
+}
+
+fn parse<T: for<'de> Deserialize<'de>>(text: &str, path: &str) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| ConfigError::Parse {
+        path: path.to_string(),
+        message: e.to_string(),
+    })
+}
+
+fn read(path: &Path) -> Result<String, ConfigError> {
+    std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+/// Parses the world file `text` (read from `path`, relative paths resolved in `dir`).
+pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, ConfigError> {
+    let mut w: WorldConfig = parse(text, path)?;
+    w.dir = dir.to_path_buf();
+    let ok = !w.name.is_empty()
+        && w.name.len() <= 64
+        && w.name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if !ok {
+        return Err(ConfigError::Invalid(format!(
+            "{path}: world name `{}` must be 1–64 letters, digits, `-` or `_`",
+            w.name
+        )));
+    }
+    Ok(w)
+}
+
+/// Loads the configuration: `path` if given; else `config/default.toml` if it exists; else the
+/// embedded defaults. Then applies `env` overrides (pass `std::env::vars()`).
+pub fn load(
+    path: Option<&Path>,
+    env: impl IntoIterator<Item = (String, String)>,
+) -> Result<Config, ConfigError> {
+    let default_path = Path::new(DEFAULT_PATH);
+    let (text, label, dir, embedded) = match path {
+        Some(p) => (read(p)?, p.display().to_string(), parent_dir(p), false),
+        None if default_path.exists() => (
+            read(default_path)?,
+            DEFAULT_PATH.to_string(),
+            parent_dir(default_path),
+            false,
+        ),
+        None => (
+            DEFAULT_TOML.to_string(),
+            "embedded default.toml".into(),
+            PathBuf::from("."),
+            true,
+        ),
+    };
+    let mut server: ServerConfig = parse(&text, &label)?;
+    apply_env(&mut server, env)?;
+    let mut worlds = Vec::new();
+    for file in &server.worlds {
+        let p = dir.join(file);
+        let world = if embedded || (!p.exists() && file == "worlds/tienshan.toml") {
+            parse_world(TIENSHAN_TOML, "embedded worlds/tienshan.toml", &dir)?
+        } else {
+            parse_world(&read(&p)?, &p.display().to_string(), &parent_dir(&p))?
+        };
+        if worlds.iter().any(|w: &WorldConfig| w.name == world.name) {
+            return Err(ConfigError::Invalid(format!(
+                "world `{}` is defined twice",
+                world.name
+            )));
+        }
+        worlds.push(world);
+    }
+    validate(&server)?;
+    Ok(Config { server, worlds })
+}
+
+fn parent_dir(p: &Path) -> PathBuf {
+    p.parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+fn validate(s: &ServerConfig) -> Result<(), ConfigError> {
+    if s.listen.parse::<std::net::SocketAddr>().is_err() {
+        return Err(ConfigError::Invalid(format!(
+            "listen `{}` is not an address:port",
+            s.listen
+        )));
+    }
+    if s.synth_concurrency == 0 {
+        return Err(ConfigError::Invalid("synth_concurrency must be ≥ 1".into()));
+    }
+    if s.request_timeout_s == 0 {
+        return Err(ConfigError::Invalid("request_timeout_s must be ≥ 1".into()));
+    }
+    Ok(())
+}
+
+/// Applies `TERRASYNTH_<KEY>` overrides (`LISTEN`, `CACHE_MB`, `STORE_DIR`, `CORS_ORIGINS` as a
+/// comma-separated list, `CACHE_CONTROL`, `SYNTH_CONCURRENCY`, `SYNTH_QUEUE`,
+/// `REQUEST_TIMEOUT_S`). Other `TERRASYNTH_*` variables are ignored.
+pub fn apply_env(
+    s: &mut ServerConfig,
+    env: impl IntoIterator<Item = (String, String)>,
+) -> Result<(), ConfigError> {
+    fn num<T: std::str::FromStr>(name: &str, v: &str) -> Result<T, ConfigError>
+    where
+        T::Err: std::fmt::Display,
+    {
+        v.trim().parse().map_err(|e: T::Err| ConfigError::Env {
+            name: name.to_string(),
+            message: e.to_string(),
+        })
+    }
+    for (name, v) in env {
+        let Some(key) = name.strip_prefix("TERRASYNTH_") else {
+            continue;
+        };
+        match key {
+            "LISTEN" => s.listen = v,
+            "CACHE_MB" => s.cache_mb = num(&name, &v)?,
+            "STORE_DIR" => s.store_dir = PathBuf::from(v),
+            "CORS_ORIGINS" => {
+                s.cors_origins = v
+                    .split(',')
+                    .map(|o| o.trim().to_string())
+                    .filter(|o| !o.is_empty())
+                    .collect()
+            }
+            "CACHE_CONTROL" => s.cache_control = v,
+            "SYNTH_CONCURRENCY" => s.synth_concurrency = num(&name, &v)?,
+            "SYNTH_QUEUE" => s.synth_queue = num(&name, &v)?,
+            "REQUEST_TIMEOUT_S" => s.request_timeout_s = num(&name, &v)?,
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_defaults_parse_and_name_the_default_world() {
+        let c = load(Some(Path::new("config/default.toml")), Vec::new()).unwrap();
+        assert_eq!(c.server.listen, "127.0.0.1:8080");
+        assert_eq!(c.server.cache_control, "public, max-age=86400");
+        assert_eq!(c.worlds.len(), 1);
+        assert_eq!(c.worlds[0].name, "tienshan");
+        assert_eq!(c.worlds[0].z_base, Some(8));
+        assert_eq!(c.worlds[0].max_zoom, 16);
+        let embedded: ServerConfig = toml::from_str(DEFAULT_TOML).unwrap();
+        assert_eq!(embedded, c.server);
+    }
+
+    #[test]
+    fn environment_overrides_the_file() {
+        let env = vec![
+            (
+                "TERRASYNTH_LISTEN".to_string(),
+                "127.0.0.1:9999".to_string(),
+            ),
+            ("TERRASYNTH_CACHE_MB".into(), "64".into()),
+            (
+                "TERRASYNTH_CORS_ORIGINS".into(),
+                "https://a.example, https://b.example".into(),
+            ),
+            ("UNRELATED".into(), "x".into()),
+        ];
+        let c = load(Some(Path::new("config/default.toml")), env).unwrap();
+        assert_eq!(c.server.listen, "127.0.0.1:9999");
+        assert_eq!(c.server.cache_mb, 64);
+        assert_eq!(
+            c.server.cors_origins,
+            vec!["https://a.example", "https://b.example"]
+        );
+        let bad = vec![("TERRASYNTH_CACHE_MB".to_string(), "lots".to_string())];
+        assert!(matches!(
+            load(Some(Path::new("config/default.toml")), bad),
+            Err(ConfigError::Env { .. })
+        ));
+    }
+
+    #[test]
+    fn bad_files_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.toml");
+        std::fs::write(&p, "listen = 5\n").unwrap();
+        assert!(matches!(
+            load(Some(&p), Vec::new()),
+            Err(ConfigError::Parse { .. })
+        ));
+        std::fs::write(&p, "nonsense_key = 1\n").unwrap();
+        assert!(matches!(
+            load(Some(&p), Vec::new()),
+            Err(ConfigError::Parse { .. })
+        ));
+        std::fs::write(&p, "listen = \"not an address\"\nworlds = []\n").unwrap();
+        assert!(matches!(
+            load(Some(&p), Vec::new()),
+            Err(ConfigError::Invalid(_))
+        ));
+        std::fs::write(&p, "worlds = [\"missing.toml\"]\n").unwrap();
+        assert!(matches!(
+            load(Some(&p), Vec::new()),
+            Err(ConfigError::Io { .. })
+        ));
+        let w = "name = \"bad name!\"\nbase = \"x.tif\"\n";
+        assert!(parse_world(w, "w.toml", dir.path()).is_err());
+    }
+}

@@ -1,0 +1,220 @@
+//! The HTTP server: an axum router over the configured worlds ([`app`]), its handlers
+//! ([`tiles`], [`meta`]), errors as problem+json ([`error`]), Prometheus metrics ([`metrics`]) and
+//! world loading ([`worlds`]). CPU work (tile synthesis and encoding) runs on tokio's blocking pool
+//! behind a semaphore and a bounded queue; the async runtime only moves bytes.
+
+pub mod error;
+pub mod meta;
+pub mod metrics;
+pub mod tiles;
+pub mod worlds;
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::body::Bytes;
+use axum::extract::{MatchedPath, Request, State};
+use axum::http::{HeaderValue, Method, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::Response;
+use axum::routing::get;
+use axum::Router;
+use moka::sync::Cache;
+use tokio::sync::Semaphore;
+use tower_http::compression::CompressionLayer;
+use tower_http::cors::{AllowOrigin, CorsLayer};
+use tower_http::trace::TraceLayer;
+
+pub use error::ServerError;
+pub use worlds::{load_worlds, Worlds};
+
+use crate::config::ServerConfig;
+
+/// Requests waiting for a synthesis slot, bounded: entering a full queue is [`ServerError::Busy`].
+#[derive(Debug)]
+pub struct Queue {
+    waiting: AtomicUsize,
+    limit: usize,
+}
+
+/// A place in the [`Queue`], released on drop.
+#[derive(Debug)]
+pub struct QueueSlot<'a>(&'a Queue);
+
+impl Drop for QueueSlot<'_> {
+    fn drop(&mut self) {
+        self.0.waiting.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+impl Queue {
+    /// A queue admitting `limit` waiting requests.
+    pub fn new(limit: usize) -> Self {
+        Queue {
+            waiting: AtomicUsize::new(0),
+            limit,
+        }
+    }
+
+    /// Takes a place, or fails with [`ServerError::Busy`] when the queue is full.
+    pub fn enter(&self) -> Result<QueueSlot<'_>, ServerError> {
+        let prev = self.waiting.fetch_add(1, Ordering::AcqRel);
+        if prev >= self.limit {
+            self.waiting.fetch_sub(1, Ordering::AcqRel);
+            return Err(ServerError::Busy);
+        }
+        Ok(QueueSlot(self))
+    }
+}
+
+/// Shared state of the handlers.
+#[derive(Clone)]
+pub struct AppState {
+    /// The worlds served.
+    pub worlds: Arc<Worlds>,
+    /// Encoded tiles by ETag, weighed in bytes.
+    pub tile_bytes: Cache<String, Bytes>,
+    /// Concurrent tile computations.
+    pub synth: Arc<Semaphore>,
+    /// Requests waiting for a computation slot.
+    pub queue: Arc<Queue>,
+    /// `Cache-Control` of tiles.
+    pub cache_control: HeaderValue,
+    /// Request metrics.
+    pub metrics: Arc<metrics::Metrics>,
+    /// Server settings.
+    pub config: Arc<ServerConfig>,
+}
+
+impl AppState {
+    /// State for `worlds` under `config`.
+    pub fn new(worlds: Worlds, config: &ServerConfig) -> Result<Self, ServerError> {
+        let cache_control = HeaderValue::from_str(&config.cache_control).map_err(|_| {
+            ServerError::Internal(format!("invalid cache_control `{}`", config.cache_control))
+        })?;
+        let bytes_capacity = config.cache_mb.saturating_mul(1 << 20) / 4;
+        Ok(AppState {
+            worlds: Arc::new(worlds),
+            tile_bytes: Cache::builder()
+                .weigher(|k: &String, v: &Bytes| {
+                    u32::try_from(k.len() + v.len() + 64).unwrap_or(u32::MAX)
+                })
+                .max_capacity(bytes_capacity)
+                .build(),
+            synth: Arc::new(Semaphore::new(config.synth_concurrency.max(1))),
+            queue: Arc::new(Queue::new(config.synth_queue)),
+            cache_control,
+            metrics: Arc::new(metrics::Metrics::default()),
+            config: Arc::new(config.clone()),
+        })
+    }
+}
+
+async fn record_metrics(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let start = Instant::now();
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    let method = req.method().to_string();
+    let resp = next.run(req).await;
+    state
+        .metrics
+        .record(&route, &method, resp.status().as_u16(), start.elapsed());
+    resp
+}
+
+async fn not_found() -> ServerError {
+    ServerError::NotFound("no such resource".into())
+}
+
+fn cors(config: &ServerConfig) -> CorsLayer {
+    let layer = CorsLayer::new()
+        .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS])
+        .expose_headers([axum::http::header::ETAG]);
+    if config.cors_origins.iter().any(|o| o == "*") || config.cors_origins.is_empty() {
+        layer.allow_origin(AllowOrigin::any())
+    } else {
+        let origins: Vec<HeaderValue> = config
+            .cors_origins
+            .iter()
+            .filter_map(|o| HeaderValue::from_str(o).ok())
+            .collect();
+        layer.allow_origin(origins)
+    }
+}
+
+/// The router of the whole HTTP API.
+pub fn app(state: AppState) -> Router {
+    let timeout = Duration::from_secs(state.config.request_timeout_s.max(1));
+    let json = Router::new()
+        .route("/worlds", get(meta::worlds))
+        .route("/worlds/{world}", get(meta::world))
+        .route("/tiles/{world}/{file}", get(meta::tilejson))
+        .layer(CompressionLayer::new());
+    Router::new()
+        .route("/tiles/{world}/{layer}/{z}/{x}/{y}", get(tiles::tile))
+        .route("/healthz", get(meta::healthz))
+        .route("/metrics", get(meta::metrics))
+        .merge(json)
+        .fallback(not_found)
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            record_metrics,
+        ))
+        .layer(tower_http::timeout::TimeoutLayer::with_status_code(
+            StatusCode::SERVICE_UNAVAILABLE,
+            timeout,
+        ))
+        .layer(tower::limit::GlobalConcurrencyLimitLayer::new(4096))
+        .layer(cors(&state.config))
+        .layer(TraceLayer::new_for_http())
+        .with_state(state)
+}
+
+/// Waits for SIGTERM or SIGINT.
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {},
+        _ = term => {},
+    }
+    tracing::info!("shutting down");
+}
+
+/// Loads the worlds (building dictionaries into the store if needed), binds `config.listen` and
+/// serves until SIGTERM/SIGINT, then drains in-flight requests.
+pub async fn serve(config: crate::config::Config) -> Result<(), ServerError> {
+    let cfg = config.clone();
+    let worlds = tokio::task::spawn_blocking(move || load_worlds(&cfg))
+        .await
+        .map_err(|e| ServerError::Internal(e.to_string()))??;
+    let state = AppState::new(worlds, &config.server)?;
+    let listener = tokio::net::TcpListener::bind(&config.server.listen)
+        .await
+        .map_err(|e| {
+            ServerError::Internal(format!("cannot listen on {}: {e}", config.server.listen))
+        })?;
+    let addr = listener
+        .local_addr()
+        .map_err(|e| ServerError::Internal(e.to_string()))?;
+    tracing::info!(%addr, "listening");
+    axum::serve(listener, app(state))
+        .with_graceful_shutdown(shutdown_signal())
+        .await
+        .map_err(|e| ServerError::Internal(e.to_string()))
+}

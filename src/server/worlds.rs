@@ -1,0 +1,152 @@
+//! Loading the configured worlds: resolve each base raster, find the world's dictionary in the
+//! store (by an alias derived from its build settings) or build it there on first start, with a
+//! log line per stage, then assemble the tile pyramid.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use sha2::{Digest, Sha256};
+
+use super::error::ServerError;
+use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_TIENSHAN};
+use crate::dictionary::build::{build, BuildOptions, Exemplar};
+use crate::dictionary::derive::derived_layers;
+use crate::dictionary::{Dictionary, Learning};
+use crate::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
+use crate::store::Store;
+use crate::tiles::{World, WorldParts};
+
+/// The worlds a server serves, by name.
+pub type Worlds = BTreeMap<String, Arc<World>>;
+
+fn load_raster(spec: &str, dir: &Path) -> Result<Grid, ServerError> {
+    if spec == EMBEDDED_TIENSHAN {
+        return embedded::tienshan()
+            .map_err(|e| ServerError::Internal(format!("embedded raster: {e}")));
+    }
+    let path = dir.join(spec);
+    read_geotiff_file(&path, &ReadLimits::default())
+        .map_err(|e| ServerError::Internal(format!("{}: {e}", path.display())))
+}
+
+/// A stable name for the dictionary a world's settings produce.
+fn dictionary_alias(world: &WorldConfig) -> String {
+    let d = &world.dictionary;
+    let mut h = Sha256::new();
+    h.update(format!(
+        "v1|{:?}|{}|{}|{}|{}|{}",
+        d.exemplars,
+        d.atoms,
+        d.patch,
+        d.stride,
+        d.seed,
+        world.dir.display()
+    ));
+    let digest = h.finalize();
+    let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    format!("world-{}-{hex}", world.name)
+}
+
+fn build_dictionary(
+    world: &WorldConfig,
+    cfg: &DictionaryConfig,
+) -> Result<Dictionary, ServerError> {
+    let mut exemplars = Vec::new();
+    for spec in &cfg.exemplars {
+        let t = Instant::now();
+        let grid = load_raster(spec, &world.dir)?;
+        let filled = grid
+            .filled()
+            .map_err(|e| ServerError::Internal(format!("exemplar {spec}: {e}")))?;
+        let cells = grid.georef.cell_sizes(grid.rows());
+        let layers = derived_layers(&filled, &cells);
+        tracing::info!(world = %world.name, exemplar = %spec, seconds = t.elapsed().as_secs_f64(), "dictionary: exemplar read and layers derived");
+        let valid = grid.valid.clone();
+        exemplars.push(Exemplar {
+            elevation: filled,
+            valid,
+            cell_m: cells.mean_cell(),
+            layers,
+        });
+    }
+    let opts = BuildOptions {
+        patch: cfg.patch,
+        stride: cfg.stride,
+        atoms: cfg.atoms,
+        learning: Learning::Medoids { iterations: 6 },
+        seed: cfg.seed,
+    };
+    let t = Instant::now();
+    let mut last = String::new();
+    let d = build(&exemplars, &opts, &mut |stage, _| {
+        if stage != last {
+            tracing::info!(world = %world.name, stage, "dictionary: stage");
+            last = stage.to_string();
+        }
+    })
+    .map_err(|e| ServerError::Internal(format!("building the dictionary: {e}")))?;
+    tracing::info!(world = %world.name, atoms = d.n_atoms, seconds = t.elapsed().as_secs_f64(), "dictionary: built");
+    Ok(d)
+}
+
+/// The world's dictionary from the store, building and storing it when absent (or unreadable).
+fn world_dictionary(
+    store: &Store,
+    world: &WorldConfig,
+) -> Result<(Arc<Dictionary>, String), ServerError> {
+    let alias = dictionary_alias(world);
+    if let Some(id) = store.alias(&alias)? {
+        match store.get_dictionary(&id) {
+            Ok(Some(d)) => {
+                tracing::info!(world = %world.name, id = %id, "dictionary: loaded from the store");
+                return Ok((Arc::new(d), id));
+            }
+            Ok(None) => {
+                tracing::warn!(world = %world.name, id = %id, "dictionary: alias points at a missing object; rebuilding")
+            }
+            Err(e) => {
+                tracing::warn!(world = %world.name, error = %e, "dictionary: stored object unusable; rebuilding")
+            }
+        }
+    }
+    tracing::info!(world = %world.name, "dictionary: not in the store; building it");
+    let d = build_dictionary(world, &world.dictionary)?;
+    let id = store.put_dictionary(&d)?;
+    store.set_alias(&alias, &id)?;
+    tracing::info!(world = %world.name, id = %id, "dictionary: stored");
+    Ok((Arc::new(d), id))
+}
+
+/// Loads every configured world.
+pub fn load_worlds(config: &Config) -> Result<Worlds, ServerError> {
+    let store = Store::open(&config.server.store_dir)?;
+    let mut worlds = Worlds::new();
+    for wc in &config.worlds {
+        let t = Instant::now();
+        let base = load_raster(&wc.base, &wc.dir)?;
+        tracing::info!(world = %wc.name, rows = base.rows(), cols = base.cols(), "world: base loaded");
+        let (dictionary, dictionary_id) = world_dictionary(&store, wc)?;
+        let world = World::new(WorldParts {
+            name: wc.name.clone(),
+            title: if wc.title.is_empty() {
+                wc.name.clone()
+            } else {
+                wc.title.clone()
+            },
+            attribution: wc.attribution.clone(),
+            base,
+            z_base: wc.z_base,
+            max_zoom: wc.max_zoom,
+            fill_m: wc.fill_m,
+            dictionary,
+            dictionary_id,
+            weights: wc.weights.clone(),
+            cache_bytes: config.server.cache_mb.saturating_mul(1 << 20),
+        })?;
+        tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
+        worlds.insert(wc.name.clone(), Arc::new(world));
+    }
+    Ok(worlds)
+}
