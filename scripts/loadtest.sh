@@ -213,13 +213,14 @@ start_server() {
 
 ROWS=()
 
-# stats FILE: FILE has lines "CODE SECONDS URL"; prints "requests errors p50_ms p99_ms"
-# (nearest-rank percentiles; errors are responses other than 200 and failed transfers).
+# stats FILE: FILE has lines "CODE SECONDS BYTES URL"; prints "requests errors p50_ms p99_ms"
+# (nearest-rank percentiles; errors are responses other than 200, empty bodies (a raster-dem tile is
+# never empty) and failed transfers).
 stats() {
     local file="$1"
     local n errors
     n=$(wc -l <"$file")
-    errors=$(awk '$1 != "200" { e++ } END { print e + 0 }' "$file")
+    errors=$(awk '$1 != "200" || $3 == 0 { e++ } END { print e + 0 }' "$file")
     if ((n == 0)); then
         echo "0 0 - -"
         return
@@ -231,7 +232,7 @@ stats() {
 }
 
 # replay NAME URLFILE: requests the URLs in order over one connection, one at a time, and writes
-# "CODE SECONDS URL" lines to $WORK/NAME.timings; sets REPLAY_WALL (seconds, wall clock).
+# "CODE SECONDS BYTES URL" lines to $WORK/NAME.timings; sets REPLAY_WALL (seconds, wall clock).
 REPLAY_WALL=0
 replay() {
     local name="$1" urls="$2"
@@ -243,7 +244,7 @@ replay() {
     local t0 t1 rc=0
     t0=$(date +%s.%N)
     timeout "$REPLAY_TIMEOUT" curl -s --max-time "$REQUEST_TIMEOUT" --config "$cfg" \
-        -w '%{http_code} %{time_total} %{url_effective}\n' >"$out" || rc=$?
+        -w '%{http_code} %{time_total} %{size_download} %{url_effective}\n' >"$out" || rc=$?
     t1=$(date +%s.%N)
     REPLAY_WALL=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
     if ((rc == 124)); then
