@@ -200,9 +200,15 @@ pub fn write_exr(raster: &LayeredRaster) -> Result<Vec<u8>, RasterError> {
                 "layer name `{name}` is empty or repeated"
             )));
         }
-        let text = Text::new_or_none(name.as_str()).ok_or_else(|| {
-            RasterError::LayerMismatch(format!("layer name `{name}` is not valid EXR text"))
-        })?;
+        let printable =
+            name.len() <= 255 && name.bytes().all(|b| b.is_ascii_graphic() || b == b' ');
+        let text = Text::new_or_none(name.as_str())
+            .filter(|_| printable)
+            .ok_or_else(|| {
+                RasterError::LayerMismatch(format!(
+                    "layer name `{name}` is not printable ASCII EXR text"
+                ))
+            })?;
         let values: Vec<f32> = data
             .indexed_iter()
             .map(|((r, c), &v)| {

@@ -12,13 +12,10 @@
 
 use std::io::Cursor;
 
-use exr::prelude::{
-    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, ReadChannels, ReadLayers,
-    SmallVec, Text, WritableImage,
-};
 use ndarray::Array2;
 
 use super::error::TileError;
+use crate::raster::{read_exr, write_exr, Georef, LayeredRaster, ReadLimits};
 
 /// The height in metres that non-finite (NaN) heights are encoded as by
 /// [`encode_terrarium_png`] and [`encode_mapbox_png`]: sea level. Infinite heights are clamped to
@@ -184,81 +181,31 @@ pub fn decode_mapbox_png(bytes: &[u8]) -> Result<Array2<f32>, TileError> {
     }))
 }
 
-/// Encodes float32 channels of one shape as a single-layer OpenEXR image, one EXR channel per
-/// entry, named as given (EXR stores channels sorted by name). Values are stored exactly (NaN
-/// included), ZIP-compressed in blocks of 16 scan lines. Errors when the list is empty, a name is
-/// empty, repeated or not printable ASCII, the shapes differ or are empty.
+/// Encodes float32 channels as a single-part OpenEXR image (a tile has no georeference of its
+/// own): one channel per entry, named as given, stored exactly (NaN included). This is
+/// [`crate::raster::write_exr`], the project's one EXR writer (ZIP blocks of 16 lines, written
+/// sequentially so the bytes are deterministic). Errors when the list is empty, a name is empty,
+/// repeated or not printable ASCII, or the shapes differ or are empty.
 pub fn encode_float_exr(channels: &[(&str, &Array2<f32>)]) -> Result<Vec<u8>, TileError> {
-    let Some((_, first)) = channels.first() else {
-        return Err(TileError::Encode(
-            "an EXR needs at least one channel".into(),
-        ));
+    let raster = LayeredRaster {
+        georef: Georef::local_metric(1.0),
+        layers: channels
+            .iter()
+            .map(|(n, a)| (n.to_string(), (*a).clone()))
+            .collect(),
+        valid: None,
     };
-    let (rows, cols) = first.dim();
-    if rows == 0 || cols == 0 {
-        return Err(TileError::Encode(format!("empty image {cols}×{rows}")));
-    }
-    let mut list: Vec<AnyChannel<FlatSamples>> = Vec::with_capacity(channels.len());
-    for (i, (name, data)) in channels.iter().enumerate() {
-        if data.dim() != (rows, cols) {
-            return Err(TileError::Encode(format!(
-                "channel `{name}` is {}×{} but the first is {cols}×{rows}",
-                data.ncols(),
-                data.nrows()
-            )));
-        }
-        let printable = !name.is_empty()
-            && name.len() <= 255
-            && name.bytes().all(|b| b.is_ascii_graphic() || b == b' ');
-        let text = Text::new_or_none(name)
-            .filter(|_| printable)
-            .ok_or_else(|| TileError::Encode(format!("bad EXR channel name `{name}`")))?;
-        if channels[..i].iter().any(|(n, _)| n == name) {
-            return Err(TileError::Encode(format!("channel `{name}` given twice")));
-        }
-        let samples: Vec<f32> = data.iter().copied().collect();
-        list.push(AnyChannel::new(text, FlatSamples::F32(samples)));
-    }
-    let image = Image::from_encoded_channels(
-        (cols, rows),
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(SmallVec::from_vec(list)),
-    );
-    let mut out = Cursor::new(Vec::new());
-    image
-        .write()
-        .non_parallel()
-        .to_buffered(&mut out)
-        .map_err(|e| TileError::Encode(e.to_string()))?;
-    Ok(out.into_inner())
+    write_exr(&raster).map_err(|e| TileError::Encode(e.to_string()))
 }
 
-/// Decodes the first layer of an OpenEXR image into `(name, values)` channels in the file's
-/// (name-sorted) order, each of shape `(height, width)`; f16 and u32 samples are converted to
-/// `f32`.
+/// Decodes an OpenEXR image into `(name, values)` channels sorted by name (the order EXR stores
+/// them in), each of shape `(height, width)`, through [`crate::raster::read_exr`].
 pub fn decode_float_exr(bytes: &[u8]) -> Result<Vec<(String, Array2<f32>)>, TileError> {
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .non_parallel()
-        .from_buffered(Cursor::new(bytes))
+    let raster = read_exr(bytes, Georef::local_metric(1.0), &ReadLimits::default())
         .map_err(|e| TileError::Decode(e.to_string()))?;
-    let layer = image.layer_data;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    layer
-        .channel_data
-        .list
-        .iter()
-        .map(|ch| {
-            let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
-            let arr = Array2::from_shape_vec((h, w), values)
-                .map_err(|e| TileError::Decode(e.to_string()))?;
-            Ok((ch.name.to_string(), arr))
-        })
-        .collect()
+    let mut layers = raster.layers;
+    layers.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(layers)
 }
 
 #[cfg(test)]
