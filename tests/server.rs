@@ -134,7 +134,8 @@ async fn elevation_tiles_in_every_format() {
         .zip(heights.iter())
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f32::max);
-    assert!(diff <= 1.0 / 256.0 + 1e-3, "exr vs terrarium {diff}");
+    // Terrarium rounds to the nearest 1/16 m (`TERRARIUM_STEPS_PER_M`); the EXR is exact.
+    assert!(diff <= 1.0 / 32.0 + 1e-3, "exr vs terrarium {diff}");
 
     let (st, h, hs) = send(
         &app,

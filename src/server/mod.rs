@@ -19,6 +19,7 @@ use axum::http::{HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::Response;
 use axum::routing::get;
+use axum::serve::ListenerExt;
 use axum::Router;
 use moka::sync::Cache;
 use tokio::sync::Semaphore;
@@ -213,6 +214,13 @@ pub async fn serve(config: crate::config::Config) -> Result<(), ServerError> {
         .local_addr()
         .map_err(|e| ServerError::Internal(e.to_string()))?;
     tracing::info!(%addr, "listening");
+    // Tiles are written whole: without TCP_NODELAY a tile's last segment can wait on the
+    // client's delayed ACK.
+    let listener = listener.tap_io(|tcp| {
+        if let Err(e) = tcp.set_nodelay(true) {
+            tracing::debug!("cannot set TCP_NODELAY: {e}");
+        }
+    });
     axum::serve(listener, app(state))
         .with_graceful_shutdown(shutdown_signal())
         .await
