@@ -188,6 +188,8 @@ fn run_serve(args: ServeCli) -> Result<(), CliError> {
             tracing_subscriber::EnvFilter::try_from_default_env()
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=warn")),
         )
+        // Colour codes only on a terminal: log files and journald get plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stdout()))
         .init();
     let mut config = terrasynth::config::load(args.config.as_deref(), std::env::vars())?;
     if let Some(listen) = args.listen {

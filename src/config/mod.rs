@@ -56,7 +56,8 @@ pub enum ConfigError {
 pub struct ServerConfig {
     /// Address and port to bind.
     pub listen: String,
-    /// Capacity of each world's level-tile cache, MiB.
+    /// Capacity of all tile caches together, MiB (see [`ServerConfig::encoded_cache_bytes`] and
+    /// [`ServerConfig::level_cache_bytes`] for the split).
     pub cache_mb: u64,
     /// Directory of the on-disk store.
     pub store_dir: PathBuf,
@@ -72,6 +73,21 @@ pub struct ServerConfig {
     pub request_timeout_s: u64,
     /// World files, relative to the configuration file's directory.
     pub worlds: Vec<String>,
+}
+
+impl ServerConfig {
+    /// Bytes of the encoded-tile cache: a quarter of `cache_mb`.
+    pub fn encoded_cache_bytes(&self) -> u64 {
+        self.cache_mb.saturating_mul(1 << 20) / 4
+    }
+
+    /// Bytes of each world's level-tile cache when `worlds` worlds are served: the other three
+    /// quarters of `cache_mb`, shared equally, so that all caches together hold at most
+    /// `cache_mb` MiB of tile data.
+    pub fn level_cache_bytes(&self, worlds: usize) -> u64 {
+        let total = self.cache_mb.saturating_mul(1 << 20);
+        (total - self.encoded_cache_bytes()) / (worlds.max(1) as u64)
+    }
 }
 
 impl Default for ServerConfig {
@@ -322,6 +338,21 @@ mod tests {
         assert_eq!(c.worlds[0].max_zoom, 16);
         let embedded: ServerConfig = toml::from_str(DEFAULT_TOML).unwrap();
         assert_eq!(embedded, c.server);
+    }
+
+    #[test]
+    fn cache_budget_is_split_and_never_exceeds_cache_mb() {
+        let c = ServerConfig {
+            cache_mb: 512,
+            ..ServerConfig::default()
+        };
+        assert_eq!(c.encoded_cache_bytes(), 128 << 20);
+        assert_eq!(c.level_cache_bytes(1), 384 << 20);
+        assert_eq!(c.level_cache_bytes(3), 128 << 20);
+        for worlds in 0..10 {
+            let n = worlds.max(1) as u64;
+            assert!(c.encoded_cache_bytes() + n * c.level_cache_bytes(worlds) <= 512 << 20);
+        }
     }
 
     #[test]

@@ -94,7 +94,7 @@ impl AppState {
         let cache_control = HeaderValue::from_str(&config.cache_control).map_err(|_| {
             ServerError::Internal(format!("invalid cache_control `{}`", config.cache_control))
         })?;
-        let bytes_capacity = config.cache_mb.saturating_mul(1 << 20) / 4;
+        let bytes_capacity = config.encoded_cache_bytes();
         Ok(AppState {
             worlds: Arc::new(worlds),
             tile_bytes: Cache::builder()

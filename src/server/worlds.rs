@@ -143,7 +143,7 @@ pub fn load_worlds(config: &Config) -> Result<Worlds, ServerError> {
             dictionary,
             dictionary_id,
             weights: wc.weights.clone(),
-            cache_bytes: config.server.cache_mb.saturating_mul(1 << 20),
+            cache_bytes: config.server.level_cache_bytes(config.worlds.len()),
         })?;
         tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
         worlds.insert(wc.name.clone(), Arc::new(world));
