@@ -73,6 +73,9 @@ pub struct ServerConfig {
     pub request_timeout_s: u64,
     /// World files, relative to the configuration file's directory.
     pub worlds: Vec<String>,
+    /// Directory of the MapLibre GL JS distribution the web map loads (relative paths are
+    /// relative to the working directory).
+    pub web_vendor_dir: PathBuf,
 }
 
 impl ServerConfig {
@@ -102,6 +105,7 @@ impl Default for ServerConfig {
             synth_queue: 256,
             request_timeout_s: 60,
             worlds: vec!["worlds/tienshan.toml".into()],
+            web_vendor_dir: PathBuf::from("node_modules/maplibre-gl/dist"),
         }
     }
 }
@@ -306,6 +310,7 @@ pub fn apply_env(
             "LISTEN" => s.listen = v,
             "CACHE_MB" => s.cache_mb = num(&name, &v)?,
             "STORE_DIR" => s.store_dir = PathBuf::from(v),
+            "WEB_VENDOR_DIR" => s.web_vendor_dir = PathBuf::from(v),
             "CORS_ORIGINS" => {
                 s.cors_origins = v
                     .split(',')

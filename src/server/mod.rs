@@ -7,6 +7,7 @@ pub mod error;
 pub mod meta;
 pub mod metrics;
 pub mod tiles;
+pub mod web;
 pub mod worlds;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -154,11 +155,18 @@ pub fn app(state: AppState) -> Router {
         .route("/worlds/{world}", get(meta::world))
         .route("/tiles/{world}/{file}", get(meta::tilejson))
         .layer(CompressionLayer::new());
+    let web = Router::new()
+        .route("/", get(web::index))
+        .route("/app.js", get(web::app_js))
+        .route("/app.css", get(web::app_css))
+        .route("/vendor/maplibre-gl/{file}", get(web::vendor))
+        .layer(CompressionLayer::new());
     Router::new()
         .route("/tiles/{world}/{layer}/{z}/{x}/{y}", get(tiles::tile))
         .route("/healthz", get(meta::healthz))
         .route("/metrics", get(meta::metrics))
         .merge(json)
+        .merge(web)
         .fallback(not_found)
         .layer(middleware::from_fn_with_state(
             state.clone(),

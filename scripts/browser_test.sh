@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Browser test of the web map: the page at / in a real headless Chromium with software WebGL2.
+#
+#   1. Installs Debian's `chromium` with apt-get if /usr/bin/chromium is missing (as root, or with
+#      sudo), and the pinned npm dependencies (MapLibre GL JS, playwright-core) with
+#      scripts/install_web.sh.
+#   2. Builds the release binary (skip with --no-build) and starts it on 127.0.0.1:PORT with the
+#      default world (its dictionary store under target/browser-store is kept between runs).
+#   3. Runs tests/browser/map_test.mjs: no console errors or failed requests, tiles of every layer
+#      answered 200/304, the canvas drawn, a fly-to at zoom 13 still drawn, the elevation readout
+#      plausible. Screenshots and the recorded tile trace (browser-trace.txt, replayable with
+#      scripts/loadtest.sh --trace) go to OUT.
+#   4. Stops the server (also on failure or Ctrl-C) and exits with the test's status.
+#
+# Usage: scripts/browser_test.sh [--no-build] [--port N] [--out DIR]   (defaults: 18090, target/browser)
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+PORT=18090
+OUT="$ROOT/target/browser"
+BUILD=1
+while (($#)); do
+    case "$1" in
+        --no-build) BUILD=0 ;;
+        --port) PORT="$2"; shift ;;
+        --out) OUT="$2"; shift ;;
+        -h | --help) sed -n '2,/^$/p' "${BASH_SOURCE[0]}" | sed -e 's/^# \{0,1\}//'; exit 0 ;;
+        *) echo "browser_test: unknown option $1" >&2; exit 2 ;;
+    esac
+    shift
+done
+log() { echo "browser_test: $*" >&2; }
+
+if [[ ! -x /usr/bin/chromium ]]; then
+    SUDO=""
+    [[ "$(id -u)" -eq 0 ]] || SUDO="sudo"
+    log "installing Debian's chromium with apt-get"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
+fi
+command -v node >/dev/null || { log "node is not installed"; exit 1; }
+bash scripts/install_web.sh
+
+BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/terrasynth"
+if ((BUILD)); then
+    cargo build --release --quiet
+fi
+[[ -x "$BIN" ]] || { log "no release binary at $BIN (drop --no-build)"; exit 1; }
+
+mkdir -p "$OUT"
+SERVER_LOG="$OUT/server.log"
+TERRASYNTH_LISTEN="127.0.0.1:$PORT" TERRASYNTH_STORE_DIR="$ROOT/target/browser-store" \
+    "$BIN" serve --config "$ROOT/config/default.toml" >"$SERVER_LOG" 2>&1 &
+SERVER_PID=$!
+trap 'kill "$SERVER_PID" 2>/dev/null; wait "$SERVER_PID" 2>/dev/null || true' EXIT
+for _ in $(seq 300); do
+    if curl -sf "http://127.0.0.1:$PORT/healthz" >/dev/null; then break; fi
+    kill -0 "$SERVER_PID" 2>/dev/null || { log "the server exited:"; cat "$SERVER_LOG" >&2; exit 1; }
+    sleep 1
+done
+curl -sf "http://127.0.0.1:$PORT/healthz" >/dev/null || { log "the server did not become healthy"; exit 1; }
+log "server up on port $PORT; running the browser test"
+node ${MAP_TEST:-tests/browser/map_test.mjs} --url "http://127.0.0.1:$PORT" --out "$OUT"

@@ -1,0 +1,119 @@
+//! The web map at `/`: an HTML page, its script and style sheet (embedded in the binary, so the
+//! page works wherever the binary runs), and MapLibre GL JS served from the npm install
+//! (`web_vendor_dir`, by default `node_modules/maplibre-gl/dist` as `scripts/install_web.sh`
+//! leaves it). No request leaves for a CDN; without the install the page loads and says how to
+//! install MapLibre.
+
+use std::path::Path as FsPath;
+
+use axum::extract::{Path, State};
+use axum::http::{header, HeaderValue};
+use axum::response::{IntoResponse, Response};
+
+use super::error::ServerError;
+use super::AppState;
+
+/// The page.
+const INDEX_HTML: &str = include_str!("web/index.html");
+/// The page's script (an ES module).
+const APP_JS: &str = include_str!("web/app.js");
+/// The page's style sheet.
+const APP_CSS: &str = include_str!("web/app.css");
+
+fn text(body: &'static str, content_type: &'static str) -> Response {
+    let mut resp = body.into_response();
+    let h = resp.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    resp
+}
+
+/// `GET /`: the web map.
+pub async fn index() -> Response {
+    text(INDEX_HTML, "text/html; charset=utf-8")
+}
+
+/// `GET /app.js`.
+pub async fn app_js() -> Response {
+    text(APP_JS, "text/javascript; charset=utf-8")
+}
+
+/// `GET /app.css`.
+pub async fn app_css() -> Response {
+    text(APP_CSS, "text/css; charset=utf-8")
+}
+
+/// The content type of a vendor file name, or `None` for names that are not served: only plain
+/// file names (no directories, nothing hidden) of scripts, style sheets and source maps.
+pub fn vendor_content_type(name: &str) -> Option<&'static str> {
+    let plain = !name.is_empty()
+        && !name.starts_with('.')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
+    if !plain {
+        return None;
+    }
+    let (_, ext) = name.rsplit_once('.')?;
+    match ext {
+        "mjs" | "js" => Some("text/javascript; charset=utf-8"),
+        "css" => Some("text/css; charset=utf-8"),
+        "map" => Some("application/json"),
+        _ => None,
+    }
+}
+
+/// `GET /vendor/maplibre-gl/{file}`: a file of the MapLibre GL JS distribution.
+pub async fn vendor(
+    State(state): State<AppState>,
+    Path(file): Path<String>,
+) -> Result<Response, ServerError> {
+    let content_type = vendor_content_type(&file)
+        .ok_or_else(|| ServerError::NotFound(format!("no vendor file `{file}`")))?;
+    let dir: &FsPath = &state.config.web_vendor_dir;
+    let bytes = tokio::fs::read(dir.join(&file)).await.map_err(|_| {
+        ServerError::NotFound(format!(
+            "`{file}` is not in {}: run scripts/install_web.sh to install MapLibre GL JS",
+            dir.display()
+        ))
+    })?;
+    let mut resp = bytes.into_response();
+    let h = resp.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    h.insert(header::CACHE_CONTROL, state.cache_control.clone());
+    Ok(resp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_plain_script_style_and_map_names_are_served() {
+        assert_eq!(
+            vendor_content_type("maplibre-gl.mjs"),
+            Some("text/javascript; charset=utf-8")
+        );
+        assert_eq!(
+            vendor_content_type("maplibre-gl.css"),
+            Some("text/css; charset=utf-8")
+        );
+        assert_eq!(
+            vendor_content_type("maplibre-gl.mjs.map"),
+            Some("application/json")
+        );
+        for bad in [
+            "",
+            "..",
+            "../Cargo.toml",
+            "a/b.js",
+            ".hidden.js",
+            "x.json",
+            "maplibre-gl.d.ts",
+            "a%2Fb.js",
+            "noext",
+        ] {
+            assert_eq!(vendor_content_type(bad), None, "{bad}");
+        }
+    }
+}
