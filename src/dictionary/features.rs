@@ -83,21 +83,27 @@ pub fn patch_mean_slope(lo: &[f32], side: usize, cell_m: f32) -> f32 {
     }
     let cell = f64::from(cell_m);
     let at = |r: usize, c: usize| f64::from(lo[r * side + c]);
-    // Derivative along one axis at index i of a line of `side` samples given by `get`.
-    let deriv = |i: usize, get: &dyn Fn(usize) -> f64| -> f64 {
+    // One-sided differences on the edges, central ones inside (the same expressions for both
+    // axes, so the result is symmetric under transposition).
+    let diff = |before: f64, here: f64, after: f64, i: usize| -> f64 {
         if i == 0 {
-            (get(1) - get(0)) / cell
+            (after - here) / cell
         } else if i == side - 1 {
-            (get(side - 1) - get(side - 2)) / cell
+            (here - before) / cell
         } else {
-            (get(i + 1) - get(i - 1)) / (2.0 * cell)
+            (after - before) / (2.0 * cell)
         }
     };
     let mut total = 0.0f64;
     for r in 0..side {
         for c in 0..side {
-            let gx = deriv(c, &|j| at(r, j));
-            let gy = deriv(r, &|i| at(i, c));
+            let here = at(r, c);
+            let left = if c > 0 { at(r, c - 1) } else { here };
+            let right = if c + 1 < side { at(r, c + 1) } else { here };
+            let up = if r > 0 { at(r - 1, c) } else { here };
+            let down = if r + 1 < side { at(r + 1, c) } else { here };
+            let gx = diff(left, here, right, c);
+            let gy = diff(up, here, down, r);
             total += (gx * gx + gy * gy).sqrt();
         }
     }
@@ -160,7 +166,45 @@ mod tests {
         assert!((patch_mean_slope(&step, 4, 1.0) - 0.5).abs() < 1e-6);
     }
 
+    /// Mean slope by the textbook formula, one derivative function per axis (the reference the
+    /// loop in [`patch_mean_slope`] must equal bit for bit).
+    fn patch_mean_slope_reference(lo: &[f32], side: usize, cell_m: f32) -> f32 {
+        let cell = f64::from(cell_m);
+        let at = |r: usize, c: usize| f64::from(lo[r * side + c]);
+        let deriv = |i: usize, get: &dyn Fn(usize) -> f64| -> f64 {
+            if i == 0 {
+                (get(1) - get(0)) / cell
+            } else if i == side - 1 {
+                (get(side - 1) - get(side - 2)) / cell
+            } else {
+                (get(i + 1) - get(i - 1)) / (2.0 * cell)
+            }
+        };
+        let mut total = 0.0f64;
+        for r in 0..side {
+            for c in 0..side {
+                let gx = deriv(c, &|j| at(r, j));
+                let gy = deriv(r, &|i| at(i, c));
+                total += (gx * gx + gy * gy).sqrt();
+            }
+        }
+        (total / (side * side) as f64) as f32
+    }
+
     proptest! {
+        #[test]
+        fn mean_slope_equals_the_reference(
+            side in 2usize..10,
+            cell in 0.5f32..500.0,
+            values in proptest::collection::vec(-3000.0f32..3000.0, 100),
+        ) {
+            let lo = &values[..side * side];
+            prop_assert_eq!(
+                patch_mean_slope(lo, side, cell).to_bits(),
+                patch_mean_slope_reference(lo, side, cell).to_bits()
+            );
+        }
+
         // box_down2 against a naive formula written independently (2-D indexing, f64 average).
         #[test]
         fn box_down_matches_naive(half in 1usize..9, seed in any::<u64>()) {
