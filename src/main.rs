@@ -34,6 +34,8 @@ enum Command {
     Crop(CropCli),
     /// Serve tiles over HTTP (the default command).
     Serve(ServeCli),
+    /// Print the OpenAPI 3.1 description of the HTTP API (as committed in openapi/openapi.json).
+    Openapi,
 }
 
 #[derive(Args, Default)]
@@ -206,6 +208,10 @@ fn run(cli: Cli) -> Result<(), CliError> {
     let command = cli.command.unwrap_or(Command::Serve(ServeCli::default()));
     match command {
         Command::Serve(args) => run_serve(args),
+        Command::Openapi => {
+            print!("{}", terrasynth::server::openapi::spec_json());
+            Ok(())
+        }
         Command::Dictionary(DictionaryCommand::Build(args)) => run_build(args),
         Command::Amplify(a) => {
             let s = amplify::run(&amplify::AmplifyArgs {

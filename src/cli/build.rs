@@ -79,7 +79,9 @@ pub struct BuildSummary {
     pub bytes: usize,
 }
 
-fn to_exemplar(
+/// The build exemplar of `grid`: NaN-free elevation, validity mask (minus `exclude`), metric cell
+/// size, the `extra` layers and, with `derive`, the derived layers.
+pub fn to_exemplar(
     grid: &Grid,
     extra: Vec<(String, Array2<f32>, LayerKind)>,
     exclude: &[Exclusion],

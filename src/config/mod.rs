@@ -76,6 +76,23 @@ pub struct ServerConfig {
     /// Directory of the MapLibre GL JS distribution the web map loads (relative paths are
     /// relative to the working directory).
     pub web_vendor_dir: PathBuf,
+    /// Bearer token of the admin API (`/admin/...`); empty disables the admin API (its routes
+    /// answer 404). Prefer `TERRASYNTH_ADMIN_TOKEN` to writing it in a file.
+    pub admin_token: Secret,
+    /// Dictionary builds running at once (each on its own low-priority worker).
+    pub build_workers: usize,
+    /// Threads of each build (a dedicated rayon pool, so builds never starve tile synthesis).
+    pub build_threads: usize,
+    /// Dictionary builds allowed to wait for a worker (beyond: 503).
+    pub build_queue: usize,
+    /// Largest admin request body, MiB (beyond: 413).
+    pub max_body_mb: u64,
+    /// Largest uploaded raster, pixels per layer (checked before decoding allocates).
+    pub max_pixels: u64,
+    /// Largest uploaded raster width or height, pixels.
+    pub max_dimension: u64,
+    /// Most layers of an uploaded exemplar (elevation included).
+    pub max_layers: usize,
 }
 
 impl ServerConfig {
@@ -93,6 +110,22 @@ impl ServerConfig {
     }
 }
 
+/// A secret string (the admin token): compared by the admin API in constant time and never
+/// printed by `Debug`.
+#[derive(Clone, Default, Deserialize, PartialEq)]
+#[serde(transparent)]
+pub struct Secret(pub String);
+
+impl std::fmt::Debug for Secret {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_empty() {
+            f.write_str("Secret(unset)")
+        } else {
+            f.write_str("Secret(***)")
+        }
+    }
+}
+
 impl Default for ServerConfig {
     fn default() -> Self {
         ServerConfig {
@@ -106,6 +139,14 @@ impl Default for ServerConfig {
             request_timeout_s: 60,
             worlds: vec!["worlds/tienshan.toml".into()],
             web_vendor_dir: PathBuf::from("node_modules/maplibre-gl/dist"),
+            admin_token: Secret::default(),
+            build_workers: 1,
+            build_threads: 1,
+            build_queue: 8,
+            max_body_mb: 512,
+            max_pixels: 1 << 26,
+            max_dimension: 32768,
+            max_layers: 16,
         }
     }
 }
@@ -280,6 +321,16 @@ fn validate(s: &ServerConfig) -> Result<(), ConfigError> {
     if s.synth_concurrency == 0 {
         return Err(ConfigError::Invalid("synth_concurrency must be ≥ 1".into()));
     }
+    if s.build_workers == 0 || s.build_threads == 0 {
+        return Err(ConfigError::Invalid(
+            "build_workers and build_threads must be ≥ 1".into(),
+        ));
+    }
+    if s.max_layers == 0 || s.max_pixels == 0 || s.max_dimension == 0 || s.max_body_mb == 0 {
+        return Err(ConfigError::Invalid(
+            "max_body_mb, max_pixels, max_dimension and max_layers must be ≥ 1".into(),
+        ));
+    }
     if s.request_timeout_s == 0 {
         return Err(ConfigError::Invalid("request_timeout_s must be ≥ 1".into()));
     }
@@ -288,7 +339,8 @@ fn validate(s: &ServerConfig) -> Result<(), ConfigError> {
 
 /// Applies `TERRASYNTH_<KEY>` overrides (`LISTEN`, `CACHE_MB`, `STORE_DIR`, `CORS_ORIGINS` as a
 /// comma-separated list, `CACHE_CONTROL`, `SYNTH_CONCURRENCY`, `SYNTH_QUEUE`,
-/// `REQUEST_TIMEOUT_S`). Other `TERRASYNTH_*` variables are ignored.
+/// `REQUEST_TIMEOUT_S`, `ADMIN_TOKEN`, `BUILD_WORKERS`, `BUILD_THREADS`, `BUILD_QUEUE`,
+/// `MAX_BODY_MB`, `MAX_PIXELS`, `MAX_DIMENSION`, `MAX_LAYERS`). Other `TERRASYNTH_*` variables are ignored.
 pub fn apply_env(
     s: &mut ServerConfig,
     env: impl IntoIterator<Item = (String, String)>,
@@ -322,6 +374,14 @@ pub fn apply_env(
             "SYNTH_CONCURRENCY" => s.synth_concurrency = num(&name, &v)?,
             "SYNTH_QUEUE" => s.synth_queue = num(&name, &v)?,
             "REQUEST_TIMEOUT_S" => s.request_timeout_s = num(&name, &v)?,
+            "ADMIN_TOKEN" => s.admin_token = Secret(v.trim().to_string()),
+            "BUILD_WORKERS" => s.build_workers = num(&name, &v)?,
+            "BUILD_THREADS" => s.build_threads = num(&name, &v)?,
+            "BUILD_QUEUE" => s.build_queue = num(&name, &v)?,
+            "MAX_BODY_MB" => s.max_body_mb = num(&name, &v)?,
+            "MAX_PIXELS" => s.max_pixels = num(&name, &v)?,
+            "MAX_DIMENSION" => s.max_dimension = num(&name, &v)?,
+            "MAX_LAYERS" => s.max_layers = num(&name, &v)?,
             _ => {}
         }
     }

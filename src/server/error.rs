@@ -6,6 +6,7 @@ use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use thiserror::Error;
 
+use super::admin::AdminError;
 use crate::config::ConfigError;
 use crate::store::StoreError;
 use crate::tiles::TileError;
@@ -31,13 +32,16 @@ pub enum ServerError {
     /// The store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
+    /// An admin or catalogue request failed.
+    #[error(transparent)]
+    Admin(#[from] AdminError),
     /// Something else failed inside the server (500).
     #[error("internal error: {0}")]
     Internal(String),
 }
 
 /// An RFC 9457 problem document.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, utoipa::ToSchema)]
 pub struct Problem {
     /// A URI reference identifying the problem type.
     #[serde(rename = "type")]
@@ -63,6 +67,7 @@ impl ServerError {
                 | TileError::OutsideWorld { .. },
             ) => StatusCode::NOT_FOUND,
             ServerError::Tile(TileError::Decode(_)) => StatusCode::BAD_REQUEST,
+            ServerError::Admin(e) => e.status(),
             _ => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -88,7 +93,11 @@ pub fn problem(status: StatusCode, detail: &str) -> Response {
 impl IntoResponse for ServerError {
     fn into_response(self) -> Response {
         let status = self.status();
-        let detail = if status.is_server_error() && !matches!(self, ServerError::Busy) {
+        let quiet = matches!(
+            self,
+            ServerError::Busy | ServerError::Admin(AdminError::QueueFull)
+        );
+        let detail = if status.is_server_error() && !quiet {
             // Internals are logged, not sent.
             tracing::error!(error = %self, "request failed");
             "the server could not produce this resource".to_string()
@@ -96,9 +105,15 @@ impl IntoResponse for ServerError {
             self.to_string()
         };
         let mut resp = problem(status, &detail);
-        if matches!(self, ServerError::Busy) {
+        if quiet {
             resp.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+        }
+        if matches!(self, ServerError::Admin(AdminError::Unauthorized(_))) {
+            resp.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                HeaderValue::from_static("Bearer realm=\"terrasynth admin\""),
+            );
         }
         resp
     }

@@ -14,7 +14,7 @@ use crate::tiles::{TerrainEncoding, TileJson, World};
 pub const LAYERS: [&str; 2] = ["elevation", "hillshade"];
 
 /// JSON description of a world.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, utoipa::ToSchema)]
 pub struct WorldInfo {
     /// URL name.
     pub name: String,

@@ -1,17 +1,21 @@
-//! The HTTP server: an axum router over the configured worlds ([`app`]), its handlers
-//! ([`tiles`], [`meta`]), errors as problem+json ([`error`]), Prometheus metrics ([`metrics`]) and
-//! world loading ([`worlds`]). CPU work (tile synthesis and encoding) runs on tokio's blocking pool
+//! The HTTP server: an axum router over the worlds ([`app`]), its handlers ([`tiles`], [`meta`],
+//! the admin API and dictionary catalogue in [`admin`]), errors as problem+json ([`error`]),
+//! Prometheus metrics ([`metrics`]), world loading ([`worlds`]) and the OpenAPI description
+//! ([`openapi`]). The set of worlds is dynamic (worlds are created and deleted through the admin
+//! API): [`LiveWorlds`] holds it and every request works on a snapshot. CPU work (tile synthesis and encoding) runs on tokio's blocking pool
 //! behind a semaphore and a bounded queue; the async runtime only moves bytes.
 
+pub mod admin;
 pub mod error;
 pub mod meta;
 pub mod metrics;
+pub mod openapi;
 pub mod tiles;
 pub mod web;
 pub mod worlds;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
@@ -19,7 +23,7 @@ use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::Response;
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::serve::ListenerExt;
 use axum::Router;
 use moka::sync::Cache;
@@ -32,6 +36,7 @@ pub use error::ServerError;
 pub use worlds::{load_worlds, Worlds};
 
 use crate::config::ServerConfig;
+use crate::tiles::World;
 
 /// Requests waiting for a synthesis slot, bounded: entering a full queue is [`ServerError::Busy`].
 #[derive(Debug)]
@@ -70,11 +75,57 @@ impl Queue {
     }
 }
 
+/// The live set of worlds, swapped as a whole when a world is created or deleted, so that a
+/// request holds a consistent snapshot without locking.
+#[derive(Clone, Default)]
+pub struct LiveWorlds(Arc<RwLock<Arc<Worlds>>>);
+
+impl LiveWorlds {
+    /// A live set starting with `worlds`.
+    pub fn new(worlds: Worlds) -> Self {
+        LiveWorlds(Arc::new(RwLock::new(Arc::new(worlds))))
+    }
+
+    /// The current worlds.
+    pub fn snapshot(&self) -> Arc<Worlds> {
+        self.0.read().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// World `name`, if served.
+    pub fn get(&self, name: &str) -> Option<Arc<World>> {
+        self.snapshot().get(name).cloned()
+    }
+
+    /// Adds (or replaces) a world.
+    pub fn insert(&self, world: Arc<World>) {
+        let mut guard = self.0.write().unwrap_or_else(|p| p.into_inner());
+        let mut next = Worlds::clone(&guard);
+        next.insert(world.name().to_string(), world);
+        *guard = Arc::new(next);
+    }
+
+    /// Removes a world; whether it was served.
+    pub fn remove(&self, name: &str) -> bool {
+        let mut guard = self.0.write().unwrap_or_else(|p| p.into_inner());
+        let mut next = Worlds::clone(&guard);
+        let had = next.remove(name).is_some();
+        *guard = Arc::new(next);
+        had
+    }
+}
+
 /// Shared state of the handlers.
-#[derive(Clone)]
+///
+/// Cloning it (which axum does for every request's `State` extractor) takes a fresh snapshot of
+/// the live worlds into [`AppState::worlds`], so handlers read `state.worlds` as a plain map and
+/// see worlds created or deleted through the admin API at their next request.
 pub struct AppState {
-    /// The worlds served.
+    /// The worlds served (a snapshot of [`AppState::live`] taken when the state was cloned).
     pub worlds: Arc<Worlds>,
+    /// The live set of worlds.
+    pub live: LiveWorlds,
+    /// The admin API and catalogue (`None`: no store, catalogue empty, admin routes absent).
+    pub admin: Option<Arc<admin::Admin>>,
     /// Encoded tiles by ETag, weighed in bytes.
     pub tile_bytes: Cache<String, Bytes>,
     /// Concurrent tile computations.
@@ -89,15 +140,50 @@ pub struct AppState {
     pub config: Arc<ServerConfig>,
 }
 
+impl Clone for AppState {
+    fn clone(&self) -> Self {
+        AppState {
+            worlds: self.live.snapshot(),
+            live: self.live.clone(),
+            admin: self.admin.clone(),
+            tile_bytes: self.tile_bytes.clone(),
+            synth: self.synth.clone(),
+            queue: self.queue.clone(),
+            cache_control: self.cache_control.clone(),
+            metrics: self.metrics.clone(),
+            config: self.config.clone(),
+        }
+    }
+}
+
 impl AppState {
-    /// State for `worlds` under `config`.
+    /// State for `worlds` under `config`, without a store: the admin API is absent.
     pub fn new(worlds: Worlds, config: &ServerConfig) -> Result<Self, ServerError> {
+        Self::with_live(LiveWorlds::new(worlds), None, config)
+    }
+
+    /// State with the admin API: opens the store at `config.server.store_dir`, starts the build
+    /// workers and adds the worlds stored by earlier runs to the configured `worlds`. The admin
+    /// routes are mounted only when a token is configured.
+    pub fn with_admin(worlds: Worlds, config: &crate::config::Config) -> Result<Self, ServerError> {
+        let live = LiveWorlds::new(worlds);
+        let admin = admin::Admin::open(config, live.clone())?;
+        Self::with_live(live, Some(Arc::new(admin)), &config.server)
+    }
+
+    fn with_live(
+        live: LiveWorlds,
+        admin: Option<Arc<admin::Admin>>,
+        config: &ServerConfig,
+    ) -> Result<Self, ServerError> {
         let cache_control = HeaderValue::from_str(&config.cache_control).map_err(|_| {
             ServerError::Internal(format!("invalid cache_control `{}`", config.cache_control))
         })?;
         let bytes_capacity = config.encoded_cache_bytes();
         Ok(AppState {
-            worlds: Arc::new(worlds),
+            worlds: live.snapshot(),
+            live,
+            admin,
             tile_bytes: Cache::builder()
                 .weigher(|k: &String, v: &Bytes| {
                     u32::try_from(k.len() + v.len() + 64).unwrap_or(u32::MAX)
@@ -152,6 +238,9 @@ pub fn app(state: AppState) -> Router {
     let timeout = Duration::from_secs(state.config.request_timeout_s.max(1));
     let json = Router::new()
         .route("/worlds", get(meta::worlds))
+        .route("/dictionaries", get(admin::list_dictionaries))
+        .route("/dictionaries/{id}", get(admin::get_dictionary))
+        .route("/openapi.json", get(openapi::serve_spec))
         .route("/worlds/{world}", get(meta::world))
         .route("/tiles/{world}/{file}", get(meta::tilejson))
         .layer(CompressionLayer::new());
@@ -161,8 +250,44 @@ pub fn app(state: AppState) -> Router {
         .route("/app.css", get(web::app_css))
         .route("/vendor/maplibre-gl/{file}", get(web::vendor))
         .layer(CompressionLayer::new());
+    let admin_enabled = state.admin.as_ref().is_some_and(|a| a.enabled());
+    let admin_routes = if admin_enabled {
+        let max_body = state.admin.as_ref().map_or(2 << 20, |a| a.limits.max_body);
+        Router::new()
+            .route(
+                "/admin/exemplars",
+                post(admin::post_exemplar).get(admin::list_exemplars),
+            )
+            .route(
+                "/admin/exemplars/{id}",
+                get(admin::get_exemplar).delete(admin::delete_exemplar),
+            )
+            .route("/admin/dictionaries", post(admin::post_dictionary))
+            .route(
+                "/admin/dictionaries/{id}",
+                axum::routing::delete(admin::delete_dictionary),
+            )
+            .route("/admin/jobs", get(admin::list_jobs))
+            .route(
+                "/admin/jobs/{id}",
+                get(admin::get_job).delete(admin::cancel_job),
+            )
+            .route("/admin/worlds", post(admin::post_world))
+            .route(
+                "/admin/worlds/{name}",
+                axum::routing::delete(admin::delete_world),
+            )
+            .route_layer(middleware::from_fn_with_state(
+                state.clone(),
+                admin::authorize,
+            ))
+            .layer(axum::extract::DefaultBodyLimit::max(max_body))
+    } else {
+        Router::new()
+    };
     Router::new()
         .route("/tiles/{world}/{layer}/{z}/{x}/{y}", get(tiles::tile))
+        .merge(admin_routes)
         .route("/healthz", get(meta::healthz))
         .route("/metrics", get(meta::metrics))
         .merge(json)
@@ -209,10 +334,17 @@ pub async fn shutdown_signal() {
 /// serves until SIGTERM/SIGINT, then drains in-flight requests.
 pub async fn serve(config: crate::config::Config) -> Result<(), ServerError> {
     let cfg = config.clone();
-    let worlds = tokio::task::spawn_blocking(move || load_worlds(&cfg))
-        .await
-        .map_err(|e| ServerError::Internal(e.to_string()))??;
-    let state = AppState::new(worlds, &config.server)?;
+    let state = tokio::task::spawn_blocking(move || {
+        let worlds = load_worlds(&cfg)?;
+        AppState::with_admin(worlds, &cfg)
+    })
+    .await
+    .map_err(|e| ServerError::Internal(e.to_string()))??;
+    if state.admin.as_ref().is_some_and(|a| a.enabled()) {
+        tracing::info!("admin API enabled under /admin");
+    } else {
+        tracing::info!("admin disabled: no admin token configured (set TERRASYNTH_ADMIN_TOKEN)");
+    }
     let listener = tokio::net::TcpListener::bind(&config.server.listen)
         .await
         .map_err(|e| {

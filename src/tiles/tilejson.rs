@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 pub const TILEJSON_VERSION: &str = "3.0.0";
 
 /// How elevation is packed into RGB tiles (MapLibre's `raster-dem` `encoding`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum TerrainEncoding {
     /// `h = R·256 + G + B/256 − 32768`.
@@ -18,7 +18,7 @@ pub enum TerrainEncoding {
 
 /// A TileJSON 3.0.0 document (only the fields terrasynth uses; `vector_layers` is not needed for
 /// raster tiles).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TileJson {
     /// Always [`TILEJSON_VERSION`].
     pub tilejson: String,

@@ -50,3 +50,40 @@ pub fn small_dictionary(seed: u64) -> Arc<Dictionary> {
     };
     Arc::new(build(&[ex], &opts, &mut |_, _| {}).expect("build a small dictionary"))
 }
+
+/// A 15″ EPSG:4326 georeference with its north-west corner at (74°E, 42.5°N).
+pub fn georef_15s() -> terrasynth::raster::Georef {
+    terrasynth::raster::Georef {
+        crs: terrasynth::raster::Crs::Epsg4326,
+        west: 74.0,
+        north: 42.5,
+        pixel_width: 1.0 / 240.0,
+        pixel_height: 1.0 / 240.0,
+    }
+}
+
+/// A GeoTIFF of synthetic terrain (`rows × cols` 15″ cells).
+pub fn geotiff_bytes(rows: usize, cols: usize, seed: u64) -> Vec<u8> {
+    let grid = terrasynth::raster::Grid::new(synthetic_terrain(rows, cols, seed), georef_15s());
+    let mut out = std::io::Cursor::new(Vec::new());
+    terrasynth::raster::write_geotiff(&grid, &mut out).expect("write a GeoTIFF");
+    out.into_inner()
+}
+
+/// A 16-bit PNG of synthetic terrain.
+pub fn png16_bytes(rows: usize, cols: usize, seed: u64) -> Vec<u8> {
+    let grid = terrasynth::raster::Grid::new(synthetic_terrain(rows, cols, seed), georef_15s());
+    terrasynth::raster::write_png16(&grid).expect("write a PNG")
+}
+
+/// An OpenEXR with an `elevation` and a `forest` channel.
+pub fn exr_bytes(rows: usize, cols: usize, seed: u64) -> Vec<u8> {
+    let grid = terrasynth::raster::Grid::new(synthetic_terrain(rows, cols, seed), georef_15s());
+    let mut r = terrasynth::raster::LayeredRaster::from_elevation(grid);
+    r.push_layer(
+        "forest",
+        Array2::from_shape_fn((rows, cols), |(a, b)| ((a + b) % 7) as f32 / 7.0),
+    )
+    .expect("a forest layer");
+    terrasynth::raster::write_exr(&r).expect("write an EXR")
+}
