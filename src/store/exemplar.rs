@@ -93,9 +93,15 @@ pub fn encode(name: &str, r: &LayeredRaster) -> Result<(ExemplarHeader, Vec<u8>)
     let mut out = Vec::with_capacity(4 + json.len() + r.layers.len() * width * height * 4);
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
+    // A cell is valid when its elevation is finite and not masked out; invalid cells are NaN in
+    // every layer.
+    let elevation = &r.layers[0].1;
+    let cell_valid = |row: usize, col: usize| {
+        elevation[[row, col]].is_finite() && r.valid.as_ref().is_none_or(|m| m[[row, col]])
+    };
     for (_, a) in &r.layers {
         for ((row, col), &v) in a.indexed_iter() {
-            let valid = r.valid.as_ref().is_none_or(|m| m[[row, col]]);
+            let valid = cell_valid(row, col);
             let v = if valid { v } else { f32::NAN };
             // One canonical NaN, so equal rasters give equal bytes.
             let v = if v.is_nan() { f32::NAN } else { v };

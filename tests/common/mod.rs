@@ -1,6 +1,8 @@
 //! Shared fixtures of the integration tests: synthetic terrain and small dictionaries.
 #![allow(dead_code)]
 
+pub mod process;
+
 use std::sync::Arc;
 
 use ndarray::Array2;
