@@ -68,6 +68,8 @@ impl ServerError {
             ) => StatusCode::NOT_FOUND,
             ServerError::Tile(TileError::Decode(_)) => StatusCode::BAD_REQUEST,
             ServerError::Admin(e) => e.status(),
+            // An id or name that cannot even be a file name names nothing.
+            ServerError::Store(StoreError::BadName(_)) => StatusCode::NOT_FOUND,
             _ => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }

@@ -50,7 +50,7 @@ impl Modify for BearerAuth {
         delete_dictionary, list_jobs, get_job, cancel_job, post_world, delete_world
     ),
     components(schemas(
-        Problem, WorldInfo, TileJson, TerrainEncoding, DictionaryInfo, ExemplarInfo, Statistics,
+        Problem, RasterFile, ExemplarForm, WorldInfo, TileJson, TerrainEncoding, DictionaryInfo, ExemplarInfo, Statistics,
         DictionaryRequest, Job, JobState, JobAccepted, WorldRequest, WorldCreated, WorldDefinition
     )),
     modifiers(&BearerAuth),
@@ -84,13 +84,27 @@ pub async fn serve_spec() -> Response {
     resp
 }
 
+/// A raster file (GeoTIFF, 16-bit PNG or OpenEXR).
+#[derive(utoipa::ToSchema)]
+#[schema(value_type = String, format = Binary)]
+struct RasterFile(Vec<u8>);
+
+/// A multipart exemplar: an `elevation` part and any number of named layer parts (each a raster
+/// file on the elevation's grid).
+#[derive(utoipa::ToSchema)]
+struct ExemplarForm {
+    /// The elevation raster.
+    #[schema(value_type = String, format = Binary)]
+    elevation: Vec<u8>,
+}
+
 /// A tile.
 #[utoipa::path(
     get,
     path = "/tiles/{world}/{layer}/{z}/{x}/{y}",
     tag = "tiles",
     params(
-        ("world" = String, Path, description = "World name"),
+        ("world" = String, Path, description = "World name", example = "tienshan"),
         ("layer" = String, Path, description = "Layer: `elevation`, `hillshade`, or any other layer the world lists in `/worlds/{world}`"),
         ("z" = String, Path, description = "Zoom"),
         ("x" = String, Path, description = "Column"),
@@ -174,7 +188,7 @@ fn dictionary() {}
 #[utoipa::path(post, path = "/admin/exemplars", tag = "admin",
     security(("bearer" = [])),
     params(
-        ("name" = String, Query, description = "Human name (1–64 letters, digits, `-`, `_`)"),
+        ("name" = String, Query, description = "Human name (1–64 letters, digits, `-`, `_`)", pattern = "^[A-Za-z0-9_-]{1,64}$"),
         ("cell_size" = Option<f64>, Query, description = "Cell size in CRS units (PNG and EXR)"),
         ("west" = Option<f64>, Query, description = "West edge in CRS units (PNG and EXR)"),
         ("north" = Option<f64>, Query, description = "North edge in CRS units (PNG and EXR)"),
@@ -182,8 +196,8 @@ fn dictionary() {}
     ),
     request_body(description = "A GeoTIFF, a 16-bit grayscale PNG or an OpenEXR file; or multipart/form-data with an `elevation` part and named layer parts on the same grid",
         content(
-            ("image/tiff"), ("image/png"), ("image/x-exr"), ("application/octet-stream"),
-            ("multipart/form-data")
+            (RasterFile = "image/tiff"), (RasterFile = "image/png"), (RasterFile = "image/x-exr"),
+            (RasterFile = "application/octet-stream"), (ExemplarForm = "multipart/form-data")
         )),
     responses(
         (status = 201, description = "Stored", body = ExemplarInfo),

@@ -45,7 +45,9 @@ impl JobState {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DictionaryRequest {
-    /// Human name of the dictionary (an alias of its content id).
+    /// Human name of the dictionary (an alias of its content id): 1–64 letters, digits, `-`
+    /// or `_`.
+    #[schema(pattern = "^[A-Za-z0-9_-]{1,64}$")]
     pub name: String,
     /// Ids of stored exemplars.
     pub exemplars: Vec<String>,

@@ -84,6 +84,8 @@ impl AdminError {
             AdminError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             AdminError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
             AdminError::QueueFull => StatusCode::SERVICE_UNAVAILABLE,
+            // An id or name that cannot even be a file name names nothing.
+            AdminError::Store(StoreError::BadName(_)) => StatusCode::NOT_FOUND,
             AdminError::Store(_) | AdminError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -308,6 +310,7 @@ pub struct WorldDefinition {
 #[serde(deny_unknown_fields)]
 pub struct WorldRequest {
     /// URL name: 1–64 letters, digits, `-` or `_`.
+    #[schema(pattern = "^[A-Za-z0-9_-]{1,64}$")]
     pub name: String,
     /// Exemplar id of the base.
     pub base: String,
@@ -462,6 +465,13 @@ impl Admin {
 
     /// Assembles a world from a definition (CPU-bound: call it off the runtime).
     fn assemble_world(&self, def: &WorldDefinition) -> Result<World, AdminError> {
+        let unknown = |what: &str, id: &str| AdminError::Invalid(format!("unknown {what} `{id}`"));
+        if !is_id(&def.base) {
+            return Err(unknown("base exemplar", &def.base));
+        }
+        if let Some(d) = def.dictionaries.iter().find(|d| !is_id(d)) {
+            return Err(unknown("dictionary", d));
+        }
         let payload = self
             .store
             .get_object(ObjectKind::Exemplar, &def.base)?
@@ -520,6 +530,13 @@ impl Admin {
             Err(AdminError::Unauthorized("invalid admin token".into()))
         }
     }
+}
+
+/// Whether `s` can be a content id (64 lowercase hex digits).
+fn is_id(s: &str) -> bool {
+    s.len() == 64
+        && s.bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
 }
 
 fn admin(state: &AppState) -> Result<Arc<Admin>, AdminError> {

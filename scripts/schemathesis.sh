@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Runs schemathesis against a live `terrasynth serve` with the committed OpenAPI description
+# (openapi/openapi.json): checks that no response is a 5xx and that every response conforms to
+# its schema. Installs a pinned schemathesis with pip into a virtualenv under target/ (nothing
+# global), starts the debug binary with an admin token on a free port and a store under target/,
+# and stops the server when done. Usage: scripts/schemathesis.sh [--release] [extra schemathesis args]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SCHEMATHESIS_VERSION=4.32.5
+PROFILE=debug
+if [[ "${1:-}" == "--release" ]]; then PROFILE=release; shift; fi
+
+VENV=target/schemathesis-venv
+if [[ ! -x "$VENV/bin/schemathesis" ]] || ! "$VENV/bin/schemathesis" --version | grep -q "$SCHEMATHESIS_VERSION"; then
+    python3 -m venv "$VENV"
+    "$VENV/bin/pip" install --quiet --disable-pip-version-check "schemathesis==$SCHEMATHESIS_VERSION"
+fi
+
+if [[ "$PROFILE" == release ]]; then cargo build --release --quiet; else cargo build --quiet; fi
+BIN="target/$PROFILE/terrasynth"
+
+PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+TOKEN="schemathesis-$RANDOM$RANDOM"
+# The store persists between runs (the default world's dictionary is built once); the objects
+# schemathesis creates are removed at the start of each run.
+STORE=target/schemathesis-store
+rm -rf "$STORE/exemplars" "$STORE/worlds" "$STORE/jobs" "$STORE/corrupt"
+rm -f "$STORE"/aliases/exemplar.* "$STORE"/aliases/world.* "$STORE"/aliases/dictionary.*
+LOG=target/schemathesis-server.log
+TERRASYNTH_ADMIN_TOKEN="$TOKEN" TERRASYNTH_STORE_DIR="$STORE" TERRASYNTH_CACHE_MB=128 \
+    "$BIN" serve --listen "127.0.0.1:$PORT" >"$LOG" 2>&1 &
+SERVER=$!
+trap 'kill "$SERVER" 2>/dev/null || true; wait "$SERVER" 2>/dev/null || true' EXIT
+
+for _ in $(seq 1 600); do
+    if curl -fsS "http://127.0.0.1:$PORT/healthz" >/dev/null 2>&1; then break; fi
+    if ! kill -0 "$SERVER" 2>/dev/null; then echo "server exited:"; cat "$LOG"; exit 1; fi
+    sleep 0.5
+done
+
+"$VENV/bin/schemathesis" run openapi/openapi.json \
+    --url "http://127.0.0.1:$PORT" \
+    --header "Authorization: Bearer $TOKEN" \
+    --checks not_a_server_error,response_schema_conformance \
+    --max-examples "${SCHEMATHESIS_MAX_EXAMPLES:-25}" \
+    --seed 1 \
+    --workers 2 \
+    --request-timeout 60 \
+    --no-color \
+    "$@"
