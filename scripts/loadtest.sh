@@ -43,6 +43,10 @@
 #   --replay-timeout S   cap of one whole replay with curl (default 600)
 #   --health-timeout S   how long to wait for /healthz after a start (default 300: the first
 #                        start ever builds the dictionary)
+#   --during-build       after the warm run, upload the default exemplar through the admin API,
+#                        start a default dictionary build (256 atoms) and repeat the warm oha run
+#                        while it runs (row "warm during a dictionary build"; acceptance 6 of
+#                        issue #5: its p99 should stay within 3x of the warm run's)
 #   -h, --help           this help
 #
 # Needs bash, curl, python3 (standard library only), cargo (to build and to install oha).
@@ -56,6 +60,8 @@ DURATION=10
 CONNECTIONS=32
 TRACE_IN=""
 BUILD=1
+DURING_BUILD=0
+ADMIN_TOKEN="loadtest-$RANDOM$RANDOM"
 BIN=""
 CONFIG="$ROOT/config/default.toml"
 CACHE_MB="${TERRASYNTH_CACHE_MB:-}"
@@ -89,6 +95,7 @@ while [[ $# -gt 0 ]]; do
         --connections) need_value "$@"; CONNECTIONS="$2"; shift 2 ;;
         --trace) need_value "$@"; TRACE_IN="$2"; shift 2 ;;
         --no-build) BUILD=0; shift ;;
+        --during-build) DURING_BUILD=1; shift ;;
         --bin) need_value "$@"; BIN="$2"; shift 2 ;;
         --config) need_value "$@"; CONFIG="$2"; shift 2 ;;
         --cache-mb) need_value "$@"; CACHE_MB="$2"; shift 2 ;;
@@ -187,7 +194,7 @@ start_server() {
     (
         cd "$ROOT"
         exec env TERRASYNTH_LISTEN="$HOST:$PORT" TERRASYNTH_CACHE_MB="$CACHE_MB" \
-            TERRASYNTH_STORE_DIR="$STORE_DIR" \
+            TERRASYNTH_STORE_DIR="$STORE_DIR" TERRASYNTH_ADMIN_TOKEN="$ADMIN_TOKEN" \
             "$BIN" serve --config "$CONFIG" --listen "$HOST:$PORT"
     ) >"$logfile" 2>&1 &
     SERVER_PID=$!
@@ -342,6 +349,29 @@ fi
 replay warm-replay "$TRACE"
 add_row "warm: trace in order, c=1" "$WORK/warm-replay.timings" "$REPLAY_WALL"
 
+oha_stats() {
+    # oha_stats FILE: "requests errors req/s p50 p99" of an oha JSON report.
+    python3 - "$1" <<'EOF'
+import json, sys
+
+with open(sys.argv[1]) as f:
+    r = json.load(f)
+codes = r.get("statusCodeDistribution") or {}
+n = sum(int(v) for v in codes.values())
+ok = int(codes.get("200", 0))
+errors = sum(int(v) for v in (r.get("errorDistribution") or {}).values())
+pct = r.get("latencyPercentiles") or {}
+
+
+def ms(key):
+    v = pct.get(key)
+    return "-" if v is None else "%.1f" % (float(v) * 1000.0)
+
+
+print(n + errors, n - ok + errors, "%.1f" % float(r["summary"]["requestsPerSec"]), ms("p50"), ms("p99"))
+EOF
+}
+
 OHA_JSON="$WORK/warm-oha.json"
 oha_args=(-z "${DURATION}s" -c "$CONNECTIONS")
 # Requests in flight at the deadline are waited for, not counted as errors.
@@ -370,28 +400,37 @@ log "warm load: oha ${oha_args[*]}"
 oha_rc=0
 timeout $((DURATION + 60)) oha "${oha_args[@]}" >"$OHA_JSON" 2>"$WORK/warm-oha.stderr" </dev/null || oha_rc=$?
 ((oha_rc == 0)) || { cat "$WORK/warm-oha.stderr" >&2; die "oha failed (exit $oha_rc)"; }
-read -r oha_n oha_err oha_rps oha_p50 oha_p99 < <(python3 - "$OHA_JSON" <<'EOF'
-import json, sys
-
-with open(sys.argv[1]) as f:
-    r = json.load(f)
-codes = r.get("statusCodeDistribution") or {}
-n = sum(int(v) for v in codes.values())
-ok = int(codes.get("200", 0))
-errors = sum(int(v) for v in (r.get("errorDistribution") or {}).values())
-pct = r.get("latencyPercentiles") or {}
-
-
-def ms(key):
-    v = pct.get(key)
-    return "-" if v is None else "%.1f" % (float(v) * 1000.0)
-
-
-print(n + errors, n - ok + errors, "%.1f" % float(r["summary"]["requestsPerSec"]), ms("p50"), ms("p99"))
-EOF
-)
+read -r oha_n oha_err oha_rps oha_p50 oha_p99 < <(oha_stats "$OHA_JSON")
 ROWS+=("warm: oha ${DURATION}s, c=$CONNECTIONS|$oha_n|$oha_err|$oha_rps|$oha_p50|$oha_p99|RSS")
 log "warm oha: $oha_n requests, $oha_err errors, $oha_rps req/s, p50 $oha_p50 ms, p99 $oha_p99 ms ($oha_desc)"
+
+if ((DURING_BUILD)); then
+    AUTH="Authorization: Bearer $ADMIN_TOKEN"
+    log "during-build: uploading the default exemplar and starting a default dictionary build"
+    ex_json=$(curl -fsS -H "$AUTH" -H 'Content-Type: image/tiff' \
+        --data-binary @"$ROOT/config/data/tienshan_west_gebco15s.tif" \
+        "$BASE/admin/exemplars?name=loadtest-exemplar") || die "exemplar upload failed"
+    ex_id=$(python3 -c 'import json,sys; print(json.load(sys.stdin)["id"])' <<<"$ex_json")
+    job_json=$(curl -fsS -H "$AUTH" -H 'Content-Type: application/json' "$BASE/admin/dictionaries" \
+        -d "{\"name\": \"loadtest-build\", \"exemplars\": [\"$ex_id\"], \"seed\": $RANDOM}") \
+        || die "dictionary build request failed"
+    job_id=$(python3 -c 'import json,sys; print(json.load(sys.stdin)["id"])' <<<"$job_json")
+    job_state() {
+        curl -fsS -H "$AUTH" "$BASE/admin/jobs/$job_id" |
+            python3 -c 'import json,sys; j=json.load(sys.stdin); print(j["state"], j["progress"])'
+    }
+    until [[ "$(job_state)" != queued* ]]; do sleep 0.2; done
+    OHA_BUILD_JSON="$WORK/warm-build-oha.json"
+    log "during-build: job $job_id running; warm load again: oha ${oha_args[*]}"
+    oha_rc=0
+    timeout $((DURATION + 60)) oha "${oha_args[@]}" >"$OHA_BUILD_JSON" 2>"$WORK/warm-build-oha.stderr" </dev/null || oha_rc=$?
+    ((oha_rc == 0)) || { cat "$WORK/warm-build-oha.stderr" >&2; die "oha failed (exit $oha_rc)"; }
+    read -r state_after progress_after < <(job_state)
+    read -r b_n b_err b_rps b_p50 b_p99 < <(oha_stats "$OHA_BUILD_JSON")
+    ROWS+=("warm during a dictionary build: oha ${DURATION}s, c=$CONNECTIONS|$b_n|$b_err|$b_rps|$b_p50|$b_p99|RSS")
+    log "during-build oha: $b_n requests, $b_err errors, $b_rps req/s, p50 $b_p50 ms, p99 $b_p99 ms (job $state_after at progress $progress_after after the run; p99 without a build: $oha_p99 ms)"
+    curl -fsS -X DELETE -H "$AUTH" "$BASE/admin/jobs/$job_id" >/dev/null 2>&1 || true
+fi
 
 curl -s --max-time 5 "$BASE/metrics" >"$WORK/metrics-main.txt" || log "warning: could not read /metrics"
 stop_server

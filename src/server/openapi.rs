@@ -46,6 +46,7 @@ impl Modify for BearerAuth {
     ),
     paths(
         tile, tilejson, worlds, world, healthz, metrics, openapi_json, dictionaries, dictionary,
+        web_index, web_js, web_css, web_vendor,
         post_exemplar, list_exemplars, get_exemplar, delete_exemplar, post_dictionary,
         delete_dictionary, list_jobs, get_job, cancel_job, post_world, delete_world
     ),
@@ -57,6 +58,7 @@ impl Modify for BearerAuth {
     tags(
         (name = "tiles", description = "Tiles and TileJSON"),
         (name = "meta", description = "Worlds, dictionaries, health, metrics"),
+        (name = "web", description = "The web map"),
         (name = "admin", description = "Admin API (bearer token; 404 when disabled)")
     )
 )]
@@ -318,3 +320,27 @@ fn post_world() {}
         (status = 409, description = "A configured (read-only) world", body = Problem, content_type = "application/problem+json")
     ))]
 fn delete_world() {}
+
+/// The web map page.
+#[utoipa::path(get, path = "/", tag = "web",
+    responses((status = 200, description = "HTML page", body = String, content_type = "text/html")))]
+fn web_index() {}
+
+/// The web map's script.
+#[utoipa::path(get, path = "/app.js", tag = "web",
+    responses((status = 200, description = "JavaScript", body = String, content_type = "text/javascript")))]
+fn web_js() {}
+
+/// The web map's style sheet.
+#[utoipa::path(get, path = "/app.css", tag = "web",
+    responses((status = 200, description = "CSS", body = String, content_type = "text/css")))]
+fn web_css() {}
+
+/// A file of the MapLibre GL JS distribution (from `web_vendor_dir`).
+#[utoipa::path(get, path = "/vendor/maplibre-gl/{file}", tag = "web",
+    params(("file" = String, Path, description = "A plain `.js`, `.mjs`, `.css` or `.map` file name")),
+    responses(
+        (status = 200, description = "The file", content(("text/javascript"), ("text/css"), ("application/json"))),
+        (status = 404, description = "Not a served name, or not installed", body = Problem, content_type = "application/problem+json")
+    ))]
+fn web_vendor() {}
