@@ -10,6 +10,7 @@ pub mod analysis;
 pub mod cli;
 pub mod config;
 pub mod dictionary;
+pub mod landscape;
 pub mod raster;
 pub mod server;
 pub mod store;

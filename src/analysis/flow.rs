@@ -84,15 +84,28 @@ fn receiver_index(i: usize, code: u8, rows: usize, cols: usize) -> Option<usize>
 }
 
 /// D8 upstream area (m²) from a receiver grid as produced by [`d8_receivers`] (codes ≥ 8 and
-/// codes pointing outside the grid are sinks). Cells are processed in a Kahn topological order
-/// (in-degree queue seeded in row-major order), O(n). Cycles, which `d8_receivers` never
-/// produces, would leave their cells with only their upstream area so far.
+/// codes pointing outside the grid are sinks): [`accumulate_sources`] of the cell areas.
 pub fn flow_accumulation_from_receivers(receivers: &Array2<u8>, cs: &CellSizes) -> Array2<f64> {
     let (rows, cols) = receivers.dim();
+    let areas = row_areas(cs, rows);
+    let sources = Array2::from_shape_fn((rows, cols), |(r, _)| areas[r]);
+    accumulate_sources(receivers, &sources)
+}
+
+/// Accumulates `sources` down a D8 receiver grid: every cell gets its own source plus the sum of
+/// the sources of every cell draining through it (the upstream area when sources are cell areas;
+/// injected inflows are added as extra source). Cells are processed in a Kahn topological order
+/// (in-degree queue seeded in row-major order), O(n). Cycles, which `d8_receivers` never
+/// produces, would leave their cells with only their upstream sum so far. A `sources` grid of
+/// another shape gives zeros.
+pub fn accumulate_sources(receivers: &Array2<u8>, sources: &Array2<f64>) -> Array2<f64> {
+    let (rows, cols) = receivers.dim();
+    if sources.dim() != (rows, cols) {
+        return Array2::zeros((rows, cols));
+    }
     let n = rows * cols;
     let codes: Vec<u8> = receivers.iter().copied().collect();
-    let areas = row_areas(cs, rows);
-    let mut acc: Vec<f64> = (0..n).map(|i| areas[i / cols]).collect();
+    let mut acc: Vec<f64> = sources.iter().copied().collect();
     let mut rcv = vec![usize::MAX; n];
     let mut indeg = vec![0u8; n];
     for i in 0..n {

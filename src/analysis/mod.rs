@@ -29,8 +29,8 @@ pub use common::next_up;
 pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
 pub use flow::{
-    d8_receivers, flow_accumulation_d8, flow_accumulation_from_receivers, flow_accumulation_mfd,
-    log_upstream_area, D8_NONE, D8_OFFSETS, MFD_EXPONENT,
+    accumulate_sources, d8_receivers, flow_accumulation_d8, flow_accumulation_from_receivers,
+    flow_accumulation_mfd, log_upstream_area, D8_NONE, D8_OFFSETS, MFD_EXPONENT,
 };
 pub use hillshade::{hillshade, hillshade_u8, DEFAULT_ALTITUDE_DEG, DEFAULT_AZIMUTH_DEG};
 pub use metrics::{box_down, relief, rmse, wasserstein1};

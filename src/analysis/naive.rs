@@ -279,3 +279,31 @@ pub fn dft2(x: &Array2<Complex>, inverse: bool) -> Array2<Complex> {
     }
     out
 }
+
+/// Source accumulation by brute force: every cell walks its receiver chain (codes as in
+/// [`D8_OFFSETS`](super::D8_OFFSETS), other codes are sinks) adding its source to every cell on
+/// the way. Reference for [`accumulate_sources`](super::flow::accumulate_sources).
+pub fn accumulate_sources(receivers: &Array2<u8>, sources: &Array2<f64>) -> Array2<f64> {
+    let (rows, cols) = receivers.dim();
+    let mut acc = Array2::zeros((rows, cols));
+    for r in 0..rows {
+        for c in 0..cols {
+            let s = sources[[r, c]];
+            let mut cur = (r, c);
+            acc[cur] += s;
+            for _ in 0..rows * cols {
+                let code = receivers[cur] as usize;
+                let Some(&(dr, dc)) = super::D8_OFFSETS.get(code) else {
+                    break;
+                };
+                let (nr, nc) = (cur.0 as isize + dr, cur.1 as isize + dc);
+                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                    break;
+                }
+                cur = (nr as usize, nc as usize);
+                acc[cur] += s;
+            }
+        }
+    }
+    acc
+}

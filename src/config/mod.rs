@@ -211,6 +211,10 @@ pub struct WorldConfig {
     /// Matching weights.
     #[serde(default)]
     pub weights: MatchWeights,
+    /// Landscape layers: species niches, materials, drainage style (`[landscape]`; the default
+    /// world's when absent).
+    #[serde(default = "crate::landscape::LandscapeConfig::tienshan")]
+    pub landscape: crate::landscape::LandscapeConfig,
     /// Directory the world file's relative paths are resolved against (set when loading).
     #[serde(skip)]
     pub dir: PathBuf,
@@ -258,6 +262,9 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
             w.name
         )));
     }
+    w.landscape
+        .validate()
+        .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     Ok(w)
 }
 

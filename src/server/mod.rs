@@ -243,6 +243,7 @@ pub fn app(state: AppState) -> Router {
         .route("/openapi.json", get(openapi::serve_spec))
         .route("/worlds/{world}", get(meta::world))
         .route("/tiles/{world}/{file}", get(meta::tilejson))
+        .route("/styles/{file}", get(meta::style))
         .layer(CompressionLayer::new());
     let web = Router::new()
         .route("/", get(web::index))

@@ -14,6 +14,7 @@ use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_TIENSHAN};
 use crate::dictionary::build::{build, BuildOptions, Exemplar};
 use crate::dictionary::derive::derived_layers;
 use crate::dictionary::{Dictionary, Learning};
+use crate::landscape::exemplar_vegetation;
 use crate::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
 use crate::store::Store;
 use crate::tiles::{World, WorldParts};
@@ -36,13 +37,16 @@ fn dictionary_alias(world: &WorldConfig) -> String {
     let d = &world.dictionary;
     let mut h = Sha256::new();
     h.update(format!(
-        "v1|{:?}|{}|{}|{}|{}|{}",
+        "v2|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}",
         d.exemplars,
         d.atoms,
         d.patch,
         d.stride,
         d.seed,
-        world.dir.display()
+        world.dir.display(),
+        // The vegetation layers derived at build time depend on the niche model.
+        world.landscape.species,
+        world.landscape.clustering,
     ));
     let digest = h.finalize();
     let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
@@ -61,7 +65,8 @@ fn build_dictionary(
             .filled()
             .map_err(|e| ServerError::Internal(format!("exemplar {spec}: {e}")))?;
         let cells = grid.georef.cell_sizes(grid.rows());
-        let layers = derived_layers(&filled, &cells);
+        let mut layers = derived_layers(&filled, &cells);
+        layers.extend(exemplar_vegetation(&world.landscape, &filled, &cells));
         tracing::info!(world = %world.name, exemplar = %spec, seconds = t.elapsed().as_secs_f64(), "dictionary: exemplar read and layers derived");
         let valid = grid.valid.clone();
         exemplars.push(Exemplar {
@@ -144,6 +149,7 @@ pub fn load_worlds(config: &Config) -> Result<Worlds, ServerError> {
             dictionary_id,
             weights: wc.weights.clone(),
             cache_bytes: config.server.level_cache_bytes(config.worlds.len()),
+            landscape: wc.landscape.clone(),
         })?;
         tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
         worlds.insert(wc.name.clone(), Arc::new(world));

@@ -81,6 +81,8 @@ pub struct Amplifier {
     detail: Vec<f32>,
     /// Whether extra dictionary layers are reconstructed too.
     with_layers: bool,
+    /// Per dictionary layer: whether it is reconstructed (when `with_layers`).
+    layer_mask: Vec<bool>,
 }
 
 /// Number of smooth residual-correction passes `F += Up(F_{L−1} − Down(F))`. Each pass shrinks the
@@ -193,6 +195,7 @@ impl Amplifier {
         Ok(Amplifier {
             inv_rms,
             with_layers: true,
+            layer_mask: vec![true; dict.layers.len()],
             smooth,
             detail,
             matcher: Matcher::new(dict.clone(), weights)?,
@@ -209,6 +212,42 @@ impl Amplifier {
     pub fn without_layers(mut self) -> Self {
         self.with_layers = false;
         self
+    }
+
+    /// This amplifier, reconstructing only the extra dictionary layers named in `names` (others
+    /// are left out of [`Amplifier::amplify`]'s result). Elevation values are unchanged.
+    pub fn with_only_layers(mut self, names: &[String]) -> Self {
+        self.layer_mask = self
+            .dict
+            .layers
+            .iter()
+            .map(|l| names.contains(&l.name))
+            .collect();
+        self
+    }
+
+    /// A layer the dictionary does not carry, carried to this level from the parent's values
+    /// alone: the residual correction of a zero blend, i.e. the smooth C¹ up-sampling of the
+    /// parent whose 2×2 box averages reproduce it. `parent` (held over `parent_window`) must cover
+    /// [`Amplifier::parent_window_for`]`(out)`. Window-invariant like [`Amplifier::amplify`].
+    pub fn upsample_layer(
+        &self,
+        parent: &Array2<f32>,
+        parent_window: Window,
+        out: Window,
+    ) -> Result<Array2<f32>, SynthError> {
+        let needed = self.parent_window_for(out);
+        if !parent_window.contains(&needed)
+            || parent.dim() != (parent_window.rows, parent_window.cols)
+        {
+            return Err(SynthError::ParentTooSmall {
+                given: parent_window.to_string(),
+                needed: needed.to_string(),
+            });
+        }
+        let bw = Self::blend_window(out);
+        let zero = Array2::<f32>::zeros((bw.rows, bw.cols));
+        Ok(correct(&zero, bw, parent, parent_window, out))
     }
 
     /// The dictionary this level uses.
@@ -455,6 +494,9 @@ impl Amplifier {
         };
         let mut layers = Vec::with_capacity(nl);
         for (l, info) in dict.layers.iter().enumerate().take(nl) {
+            if !self.layer_mask.get(l).copied().unwrap_or(false) {
+                continue;
+            }
             let raw = self.blend(bw, lr, &prims, Blended::Layer(l));
             let field = match parent.layer(&info.name) {
                 Some(pl) => correct(&raw, bw, pl, parent.window, out),

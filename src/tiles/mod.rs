@@ -8,6 +8,7 @@
 
 pub mod encode;
 pub mod error;
+pub mod layers;
 pub mod mercator;
 pub mod resample;
 pub mod tilejson;

@@ -10,21 +10,26 @@
 //! consistent. Level tiles are cached per `(zoom, x, y)` in a moka cache weighed in bytes, and
 //! concurrent requests for one tile compute it once.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use moka::sync::Cache;
 use ndarray::{s, Array2};
 
 use super::error::TileError;
+use super::layers::BaseLayers;
 use super::mercator::{ground_cell_m, lonlat_to_global_pixel, validate_tile, TILE_SIZE};
 use super::resample::mercator_window_from_grid;
 use crate::dictionary::{Dictionary, MatchWeights};
+use crate::landscape::LandscapeConfig;
 use crate::raster::{CellSizes, Grid};
 use crate::synth::{Amplifier, Field, Window};
 
 const T: i64 = TILE_SIZE as i64;
+/// A level tile's key: `(zoom, column, row)`.
+type TileKey = (u8, i64, i64);
 /// Bytes held by one cached 256×256 `f32` tile (plus bookkeeping).
 const TILE_BYTES: u32 = TILE_SIZE * TILE_SIZE * 4 + 64;
 
@@ -51,8 +56,11 @@ pub struct WorldParts {
     pub dictionary_id: String,
     /// Matching weights.
     pub weights: MatchWeights,
-    /// Capacity of the level-tile cache, bytes.
+    /// Capacity of the world's level-tile caches together, bytes: half for elevation, a quarter
+    /// each for vegetation and drainage.
     pub cache_bytes: u64,
+    /// Landscape layers: species niches, materials, drainage style.
+    pub landscape: LandscapeConfig,
 }
 
 /// Counters a world keeps for `/metrics`.
@@ -86,6 +94,17 @@ pub struct World {
     cache: Cache<(u8, i64, i64), Arc<Array2<f32>>>,
     stats: WorldStats,
     fingerprint: String,
+    /// Landscape configuration.
+    pub(super) landscape: Arc<LandscapeConfig>,
+    /// The amplifier reconstructing the species layers from the same matches as elevation.
+    pub(super) layer_amplifier: Amplifier,
+    /// Whole-world layers at the native zoom (global drainage, base vegetation), computed on
+    /// first use.
+    pub(super) base_layers: OnceLock<Result<Arc<BaseLayers>, TileError>>,
+    /// Vegetation level tiles (one grid per species), weighed in bytes.
+    pub(super) vegetation_cache: Cache<TileKey, Arc<Vec<Array2<f32>>>>,
+    /// Drainage level tiles (upstream area, m²), weighed in bytes.
+    pub(super) drainage_cache: Cache<(u8, i64, i64), Arc<Array2<f32>>>,
 }
 
 impl std::fmt::Debug for World {
@@ -125,6 +144,7 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
         parts.fill_m.to_bits(),
         parts.weights
     ));
+    h.update(format!("{:?}|", parts.landscape));
     for v in parts.base.data.iter() {
         h.update(v.to_bits().to_le_bytes());
     }
@@ -152,10 +172,27 @@ impl World {
         let amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)
             .map_err(|e| TileError::Synthesis(e.to_string()))?
             .without_layers();
+        parts
+            .landscape
+            .validate()
+            .map_err(|e| TileError::Synthesis(e.to_string()))?;
+        let layer_amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)
+            .map_err(|e| TileError::Synthesis(e.to_string()))?
+            .with_only_layers(&parts.landscape.species_names());
         let fingerprint = fingerprint(&parts, z_base);
         let cache = Cache::builder()
             .weigher(|_, _| TILE_BYTES)
-            .max_capacity(parts.cache_bytes)
+            .max_capacity(parts.cache_bytes / 2)
+            .build();
+        let vegetation_cache = Cache::builder()
+            .weigher(|_, v: &Arc<Vec<Array2<f32>>>| {
+                u32::try_from(v.len().max(1)).map_or(u32::MAX, |n| n.saturating_mul(TILE_BYTES))
+            })
+            .max_capacity(parts.cache_bytes / 4)
+            .build();
+        let drainage_cache = Cache::builder()
+            .weigher(|_, _| TILE_BYTES)
+            .max_capacity(parts.cache_bytes / 4)
             .build();
         Ok(World {
             name: parts.name,
@@ -172,6 +209,11 @@ impl World {
             cache,
             stats: WorldStats::default(),
             fingerprint,
+            landscape: Arc::new(parts.landscape),
+            layer_amplifier,
+            base_layers: OnceLock::new(),
+            vegetation_cache,
+            drainage_cache,
         })
     }
 
@@ -240,10 +282,14 @@ impl World {
         &self.stats
     }
 
-    /// Bytes currently held by the level-tile cache.
+    /// Bytes currently held by the level-tile caches (elevation, vegetation, drainage).
     pub fn cache_bytes(&self) -> u64 {
         self.cache.run_pending_tasks();
+        self.vegetation_cache.run_pending_tasks();
+        self.drainage_cache.run_pending_tasks();
         self.cache.weighted_size()
+            + self.vegetation_cache.weighted_size()
+            + self.drainage_cache.weighted_size()
     }
 
     /// Checks that tile `(z, x, y)` exists and intersects the world: `OutOfRange`, `ZoomTooDeep`
@@ -301,36 +347,24 @@ impl World {
             });
         }
         let mut out = Array2::<f32>::zeros((w.rows, w.cols));
-        let tx0 = w.col0.div_euclid(T);
-        let tx1 = (w.col1() - 1).div_euclid(T);
-        let ty0 = w.row0.div_euclid(T);
-        let ty1 = (w.row1() - 1).div_euclid(T);
-        for ty in ty0..=ty1 {
-            for tx in tx0..=tx1 {
-                let tile = self.level_tile(z, tx, ty)?;
-                // Intersection of the tile with the window, in global pixels.
-                let c0 = (tx * T).max(w.col0);
-                let c1 = (tx * T + T).min(w.col1());
-                let r0 = (ty * T).max(w.row0);
-                let r1 = (ty * T + T).min(w.row1());
-                let src = tile.slice(s![
-                    (r0 - ty * T) as usize..(r1 - ty * T) as usize,
-                    (c0 - tx * T) as usize..(c1 - tx * T) as usize
-                ]);
-                out.slice_mut(s![
-                    (r0 - w.row0) as usize..(r1 - w.row0) as usize,
-                    (c0 - w.col0) as usize..(c1 - w.col0) as usize
-                ])
-                .assign(&src);
-            }
-        }
+        for_each_tile_part(w, |tx, ty, src, dst| {
+            let tile = self.level_tile(z, tx, ty)?;
+            out.slice_mut(s![dst.0, dst.1])
+                .assign(&tile.slice(s![src.0, src.1]));
+            Ok(())
+        })?;
         Ok(out)
     }
 
     /// The level tile `(z, tx, ty)` from the cache, computing it (once, even under concurrent
     /// requests) when absent. Tile indices may lie outside `[0, 2^z)`: the plane is defined
     /// everywhere (fill outside the base).
-    fn level_tile(&self, z: u8, tx: i64, ty: i64) -> Result<Arc<Array2<f32>>, TileError> {
+    pub(super) fn level_tile(
+        &self,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<Arc<Array2<f32>>, TileError> {
         let key = (z, tx, ty);
         if let Some(t) = self.cache.get(&key) {
             self.stats.cache_hits.fetch_add(1, Ordering::Relaxed);
@@ -378,7 +412,7 @@ impl World {
     }
 
     /// Whether tile `(z, tx, ty)` lies wholly outside the base coverage (all fill).
-    fn tile_outside(&self, z: u8, tx: i64, ty: i64) -> bool {
+    pub(super) fn tile_outside(&self, z: u8, tx: i64, ty: i64) -> bool {
         if tx < 0 || ty < 0 || tx >= (1i64 << z) || ty >= (1i64 << z) {
             return true;
         }
@@ -406,4 +440,42 @@ impl World {
         }
         Ok(out)
     }
+}
+
+/// Row and column ranges of a tile part: `(rows, cols)`.
+pub(super) type Part = (Range<usize>, Range<usize>);
+
+/// Calls `f(tx, ty, src, dst)` for every tile `(tx, ty)` meeting window `w` of a zoom's pixel
+/// plane, with the ranges of the intersection inside the tile (`src`) and inside `w` (`dst`), in
+/// row-major tile order.
+pub(super) fn for_each_tile_part(
+    w: Window,
+    mut f: impl FnMut(i64, i64, Part, Part) -> Result<(), TileError>,
+) -> Result<(), TileError> {
+    if w.is_empty() {
+        return Ok(());
+    }
+    let tx0 = w.col0.div_euclid(T);
+    let tx1 = (w.col1() - 1).div_euclid(T);
+    let ty0 = w.row0.div_euclid(T);
+    let ty1 = (w.row1() - 1).div_euclid(T);
+    for ty in ty0..=ty1 {
+        for tx in tx0..=tx1 {
+            // Intersection of the tile with the window, in global pixels.
+            let c0 = (tx * T).max(w.col0);
+            let c1 = (tx * T + T).min(w.col1());
+            let r0 = (ty * T).max(w.row0);
+            let r1 = (ty * T + T).min(w.row1());
+            let src = (
+                (r0 - ty * T) as usize..(r1 - ty * T) as usize,
+                (c0 - tx * T) as usize..(c1 - tx * T) as usize,
+            );
+            let dst = (
+                (r0 - w.row0) as usize..(r1 - w.row0) as usize,
+                (c0 - w.col0) as usize..(c1 - w.col0) as usize,
+            );
+            f(tx, ty, src, dst)?;
+        }
+    }
+    Ok(())
 }

@@ -36,12 +36,33 @@ pub fn synthetic_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
 
 /// A small dictionary built from synthetic terrain (patch 16, stride 4, 64 atoms).
 pub fn small_dictionary(seed: u64) -> Arc<Dictionary> {
+    small_dictionary_layers(seed, false)
+}
+
+/// [`small_dictionary`] whose atoms also carry the default world's vegetation layers (niche
+/// model and seeding simulation on the exemplar, raised by 1000 m like the mini world's base).
+/// Elevation atoms are the same as [`small_dictionary`]'s: learning only looks at elevation.
+pub fn small_dictionary_with_vegetation(seed: u64) -> Arc<Dictionary> {
+    small_dictionary_layers(seed, true)
+}
+
+fn small_dictionary_layers(seed: u64, vegetation: bool) -> Arc<Dictionary> {
     let z = synthetic_terrain(160, 160, seed);
+    let layers = if vegetation {
+        let cells = terrasynth::raster::CellSizes::uniform(160, 100.0);
+        terrasynth::landscape::exemplar_vegetation(
+            &terrasynth::landscape::LandscapeConfig::tienshan(),
+            &z.mapv(|v| v + 1000.0),
+            &cells,
+        )
+    } else {
+        Vec::new()
+    };
     let ex = Exemplar {
         elevation: z,
         valid: None,
         cell_m: 100.0,
-        layers: Vec::new(),
+        layers,
     };
     let opts = BuildOptions {
         patch: 16,

@@ -1,0 +1,213 @@
+//! Splat and colour maps (DESIGN.md method 4): per material a weight that is the product of its
+//! weight curves over the pixel's parameters, modulated by a deterministic value noise of
+//! geographic position; weights normalised to sum 1 (a pixel no material admits goes wholly to the
+//! fallback material); quantised so that the bytes of all sets sum to exactly 255; and the colour
+//! `Σ w_m colour_m`.
+
+use ndarray::Array2;
+
+use super::model::{LandscapeConfig, Material};
+use crate::dictionary::rng::{hash2, mix64, to_unit_f64};
+
+/// The parameters of a block of pixels, all arrays of one shape.
+#[derive(Clone, Debug)]
+pub struct LayerInputs<'a> {
+    /// Elevation, metres.
+    pub elevation: &'a Array2<f32>,
+    /// Slope, degrees.
+    pub slope: &'a Array2<f32>,
+    /// Northness, −1..1.
+    pub northness: &'a Array2<f32>,
+    /// Curvature, 1/m.
+    pub curvature: &'a Array2<f32>,
+    /// Wetness, log10 m².
+    pub wetness: &'a Array2<f32>,
+    /// Vegetation densities in species order.
+    pub vegetation: &'a [Array2<f32>],
+    /// Global pixel coordinates `(row, col)` of element `(0, 0)`.
+    pub origin: (i64, i64),
+    /// Web Mercator metres per pixel (places the noise geographically).
+    pub pixel_m: f64,
+}
+
+/// Value noise in [−1, 1] at Mercator metres `(x, y)` with wavelength `scale` (smoothstep
+/// interpolation of hashed lattice values).
+fn value_noise(seed: u64, x: f64, y: f64, scale: f64) -> f32 {
+    let (u, v) = (x / scale, y / scale);
+    let (i, j) = (u.floor(), v.floor());
+    let (fu, fv) = (u - i, v - j);
+    let (i, j) = (i as i64, j as i64);
+    let h = |a: i64, b: i64| 2.0 * to_unit_f64(hash2(seed, a, b)) - 1.0;
+    let s = |t: f64| t * t * (3.0 - 2.0 * t);
+    let (su, sv) = (s(fu), s(fv));
+    let top = h(i, j) + (h(i + 1, j) - h(i, j)) * su;
+    let bot = h(i, j + 1) + (h(i + 1, j + 1) - h(i, j + 1)) * su;
+    (top + (bot - top) * sv) as f32
+}
+
+/// The unnormalised weight of material `m` at one pixel.
+#[allow(clippy::too_many_arguments)]
+fn raw_weight(
+    m: &Material,
+    cfg: &LandscapeConfig,
+    e: f32,
+    s: f32,
+    n: f32,
+    c: f32,
+    w: f32,
+    veg: &dyn Fn(usize) -> f32,
+) -> f32 {
+    let mut out = 1.0f32;
+    for (t, x) in [
+        (m.elevation, e),
+        (m.slope, s),
+        (m.northness, n),
+        (m.curvature, c),
+        (m.wetness, w),
+    ] {
+        if let Some(t) = t {
+            out *= t.weight(x);
+        }
+    }
+    for (name, t) in &m.vegetation {
+        let d = cfg
+            .species
+            .iter()
+            .position(|sp| &sp.name == name)
+            .map_or(0.0, veg);
+        out *= t.weight(d);
+    }
+    out
+}
+
+/// Normalised material weights (one grid per material, summing to 1 at every pixel).
+pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Array2<f32>> {
+    let (rows, cols) = inp.elevation.dim();
+    let nm = cfg.materials.len();
+    let fallback = cfg.fallback_index();
+    let mut out: Vec<Array2<f32>> = (0..nm).map(|_| Array2::zeros((rows, cols))).collect();
+    let mut w = vec![0.0f32; nm];
+    for r in 0..rows {
+        let y = (inp.origin.0 + r as i64) as f64 + 0.5;
+        for c in 0..cols {
+            let x = (inp.origin.1 + c as i64) as f64 + 0.5;
+            let veg = |k: usize| inp.vegetation.get(k).map_or(0.0, |a| a[[r, c]]);
+            let mut total = 0.0f32;
+            for (k, m) in cfg.materials.iter().enumerate() {
+                let mut v = raw_weight(
+                    m,
+                    cfg,
+                    inp.elevation[[r, c]],
+                    inp.slope[[r, c]],
+                    inp.northness[[r, c]],
+                    inp.curvature[[r, c]],
+                    inp.wetness[[r, c]],
+                    &veg,
+                );
+                if v > 0.0 && m.spread > 0.0 {
+                    let seed = mix64(0x5b1a7 ^ k as u64);
+                    let nz = value_noise(
+                        seed,
+                        x * inp.pixel_m,
+                        y * inp.pixel_m,
+                        f64::from(m.spread_scale_m),
+                    );
+                    v *= (1.0 + m.spread * nz).max(0.0);
+                }
+                w[k] = v;
+                total += v;
+            }
+            for (k, o) in out.iter_mut().enumerate() {
+                o[[r, c]] = if total > 0.0 {
+                    w[k] / total
+                } else if k == fallback {
+                    1.0
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+    out
+}
+
+/// Quantises normalised weights to bytes summing to exactly 255 (largest remainder; ties to the
+/// lowest index). A zero weight stays 0.
+pub fn quantise_weights(w: &[f32], out: &mut [u8]) {
+    let mut sum = 0u32;
+    for (o, &v) in out.iter_mut().zip(w) {
+        let q = (v.max(0.0) * 255.0).floor().min(255.0);
+        *o = q as u8;
+        sum += u32::from(*o);
+    }
+    // Hand out the deficit to the largest remainders among positive weights.
+    while sum < 255 {
+        let mut best: Option<(usize, f32)> = None;
+        for (k, &v) in w.iter().enumerate() {
+            if v > 0.0 && out[k] < 255 {
+                let rem = v * 255.0 - f32::from(out[k]);
+                if best.is_none_or(|(_, b)| rem > b) {
+                    best = Some((k, rem));
+                }
+            }
+        }
+        match best {
+            Some((k, _)) => out[k] += 1,
+            None => break,
+        }
+        sum += 1;
+    }
+    while sum > 255 {
+        let k = (0..out.len()).max_by_key(|&k| out[k]).unwrap_or(0);
+        out[k] -= 1;
+        sum -= 1;
+    }
+}
+
+/// The colour `Σ w_m colour_m` of normalised weights `w`, as `f32` RGB in 0..255.
+pub fn colour_of(cfg: &LandscapeConfig, w: &[f32]) -> [f32; 3] {
+    let mut rgb = [0.0f32; 3];
+    for (m, &v) in cfg.materials.iter().zip(w) {
+        for (o, &c) in rgb.iter_mut().zip(&m.colour) {
+            *o += v * f32::from(c);
+        }
+    }
+    rgb
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantised_weights_sum_to_255_and_keep_zeros() {
+        let cases: [&[f32]; 4] = [
+            &[1.0, 0.0, 0.0],
+            &[1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
+            &[0.5, 0.0, 0.25, 0.25, 0.0],
+            &[0.001, 0.999, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ];
+        for w in cases {
+            let mut q = vec![0u8; w.len()];
+            quantise_weights(w, &mut q);
+            assert_eq!(q.iter().map(|&v| u32::from(v)).sum::<u32>(), 255, "{w:?}");
+            for (a, b) in w.iter().zip(&q) {
+                if *a == 0.0 {
+                    assert_eq!(*b, 0);
+                }
+                assert!((f32::from(*b) - a * 255.0).abs() <= 1.0);
+            }
+        }
+    }
+
+    #[test]
+    fn noise_is_bounded_and_continuous() {
+        for k in 0..200 {
+            let x = k as f64 * 37.3;
+            let a = value_noise(9, x, 2.0 * x, 500.0);
+            let b = value_noise(9, x + 0.5, 2.0 * x, 500.0);
+            assert!((-1.0..=1.0).contains(&a));
+            assert!((a - b).abs() < 0.01);
+        }
+    }
+}
