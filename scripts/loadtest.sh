@@ -33,6 +33,8 @@
 #   --duration S         seconds of the warm oha run (default 10)
 #   --connections N      connections of the warm oha run (default 32)
 #   --trace FILE         replay this URL file (one URL or path a line) instead of the generated trace
+#   --trace-args "ARGS"  extra arguments of make_trace.py, e.g. "--landscape-zooms '' --splat-zooms ''"
+#                        for elevation and hillshade only (default: its mix, landscape layers included)
 #   --no-build           do not run `cargo build --release`
 #   --bin PATH           server binary (default $CARGO_TARGET_DIR or target, /release/terrasynth)
 #   --config FILE        server configuration (default config/default.toml)
@@ -59,6 +61,7 @@ PORT=18080
 DURATION=10
 CONNECTIONS=32
 TRACE_IN=""
+TRACE_ARGS=""
 BUILD=1
 DURING_BUILD=0
 ADMIN_TOKEN="loadtest-$RANDOM$RANDOM"
@@ -94,6 +97,7 @@ while [[ $# -gt 0 ]]; do
         --duration) need_value "$@"; DURATION="$2"; shift 2 ;;
         --connections) need_value "$@"; CONNECTIONS="$2"; shift 2 ;;
         --trace) need_value "$@"; TRACE_IN="$2"; shift 2 ;;
+        --trace-args) need_value "$@"; TRACE_ARGS="$2"; shift 2 ;;
         --no-build) BUILD=0; shift ;;
         --during-build) DURING_BUILD=1; shift ;;
         --bin) need_value "$@"; BIN="$2"; shift 2 ;;
@@ -324,9 +328,11 @@ if [[ -n "$TRACE_IN" ]]; then
         "$TRACE_IN" >"$TRACE"
     TRACE_DESC="$TRACE_IN"
 else
-    python3 "$ROOT/scripts/make_trace.py" --base-url "$BASE" --stats >"$TRACE" 2>"$WORK/trace.stats"
+    # shellcheck disable=SC2086 # TRACE_ARGS is a list of words on purpose.
+    eval "python3 \"\$ROOT/scripts/make_trace.py\" --base-url \"\$BASE\" $TRACE_ARGS --stats" \
+        >"$TRACE" 2>"$WORK/trace.stats"
     sed -e 's/^/loadtest: trace: /' "$WORK/trace.stats" >&2
-    TRACE_DESC="scripts/make_trace.py (pan-and-zoom, z9-14)"
+    TRACE_DESC="scripts/make_trace.py $TRACE_ARGS (pan-and-zoom, z9-14, landscape layers at z10/13/14)"
 fi
 TRACE_N=$(wc -l <"$TRACE")
 ((TRACE_N > 0)) || die "the trace is empty"

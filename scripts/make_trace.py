@@ -12,13 +12,16 @@ Like a real client it requests each tile once (it keeps what it has already load
 viewport it requests the tiles nearest the centre first. Most requests are terrarium elevation
 PNGs; at some zooms the hillshade overlay is visible (its tiles are requested right after the
 elevation tile of the same position) and at others the client is a high-DPI one asking for `@2x`
-elevation tiles.
+elevation tiles. The landscape layers are in the mix too: at the --landscape-zooms the map shows
+the MapLibre style of the world (colour map and drainage overlay, requested after each elevation
+tile), and at the --splat-zooms a game-engine client streams splat sets 0 and 1 and the vegetation
+channels with its heightmaps. Pass empty lists to leave them out.
 
 The output is one URL per line (`BASE/tiles/WORLD/LAYER/Z/X/Y.png`), in request order. The same
 arguments always give the same file. Only the Python 3 standard library is used.
 
 Usage: make_trace.py [--base-url URL] [--world NAME] [--hillshade-zooms 11,13]
-                     [--retina-zooms 12] [--stats]
+                     [--retina-zooms 12] [--landscape-zooms 10,14] [--splat-zooms 13] [--stats]
 """
 
 import argparse
@@ -100,8 +103,9 @@ def parse_zooms(text):
     return {int(z) for z in text.split(",") if z.strip()}
 
 
-def generate(hillshade_zooms, retina_zooms):
-    """Yield (zoom, layer, suffix, x, y) in request order."""
+def generate(hillshade_zooms, retina_zooms, landscape_zooms=frozenset(), splat_zooms=frozenset()):
+    """Yield (zoom, layer, suffix, x, y) in request order; `suffix` is what follows the tile
+    row in the URL (`@2x`, or a query such as `?set=1`)."""
     cx, cy = snap(*lonlat_to_tile(*TALAS, 9))
     for zoom in range(9, 15):
         if zoom > 9:
@@ -125,6 +129,13 @@ def generate(hillshade_zooms, retina_zooms):
                 yield zoom, "elevation", suffix, x, y
                 if zoom in hillshade_zooms:
                     yield zoom, "hillshade", "", x, y
+                if zoom in landscape_zooms:
+                    yield zoom, "color", "", x, y
+                    yield zoom, "drainage", "", x, y
+                if zoom in splat_zooms:
+                    yield zoom, "splat", "", x, y
+                    yield zoom, "splat", "?set=1", x, y
+                    yield zoom, "vegetation", "", x, y
 
 
 def main():
@@ -137,6 +148,12 @@ def main():
     parser.add_argument("--retina-zooms", default="12",
                         help="zooms browsed by a high-DPI client asking for @2x elevation "
                              "(default %(default)s)")
+    parser.add_argument("--landscape-zooms", default="10,14",
+                        help="zooms at which the colour map and drainage overlay are shown "
+                             "(default %(default)s)")
+    parser.add_argument("--splat-zooms", default="13",
+                        help="zooms at which splat sets 0-1 and vegetation are streamed "
+                             "(default %(default)s)")
     parser.add_argument("--stats", action="store_true",
                         help="print request counts per zoom and layer to stderr")
     args = parser.parse_args()
@@ -144,10 +161,16 @@ def main():
     base = args.base_url.rstrip("/")
     hillshade = parse_zooms(args.hillshade_zooms)
     retina = parse_zooms(args.retina_zooms)
+    landscape = parse_zooms(args.landscape_zooms)
+    splat = parse_zooms(args.splat_zooms)
     counts = {}
     out = sys.stdout
-    for zoom, layer, suffix, x, y in generate(hillshade, retina):
-        out.write(f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}{suffix}.png\n")
+    for zoom, layer, suffix, x, y in generate(hillshade, retina, landscape, splat):
+        if suffix.startswith("?"):
+            url = f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}.png{suffix}"
+        else:
+            url = f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}{suffix}.png"
+        out.write(url + "\n")
         key = (zoom, layer + suffix)
         counts[key] = counts.get(key, 0) + 1
     if args.stats:

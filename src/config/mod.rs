@@ -165,6 +165,10 @@ pub struct DictionaryConfig {
     pub stride: usize,
     /// Seed.
     pub seed: u64,
+    /// Real vegetation rasters replacing the niche-model layer of a species: species name → one
+    /// GeoTIFF path per exemplar (same order, same grid as the exemplar; `""` keeps the derived
+    /// layer for that exemplar). Densities 0–1.
+    pub vegetation_rasters: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 impl Default for DictionaryConfig {
@@ -175,6 +179,7 @@ impl Default for DictionaryConfig {
             patch: 16,
             stride: 8,
             seed: 1,
+            vegetation_rasters: Default::default(),
         }
     }
 }

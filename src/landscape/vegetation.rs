@@ -68,8 +68,8 @@ fn box_fraction(s: &[u32], rows: usize, cols: usize, r: usize, c: usize, rad: us
 
 /// Patchy densities from a suitability grid whose cell `(0, 0)` has global coordinates
 /// `(row0, col0)`: seeds fall with probability `0.3·s`, then each round an empty cell is colonised
-/// with probability `s · 2·(occupied share of its box)` and an occupied one survives with
-/// probability `0.4 + 0.6·s`; the density is `s · (floor + (1 − floor) · share)` with the final
+/// with probability `s · (occupied share of its box)` and an occupied one survives with
+/// probability `0.2 + 0.5·s` (so even fully suitable ground keeps gaps); the density is `s · (floor + (1 − floor) · share)` with the final
 /// occupied share in the box. `stream` separates species.
 pub fn cluster_densities(
     suit: &Array2<f32>,
@@ -95,10 +95,10 @@ pub fn cluster_densities(
             .map(|i| {
                 let u = draw(round, i);
                 let ok = if occ[i] == 1 {
-                    u < 0.4 + 0.6 * s[i]
+                    u < 0.2 + 0.5 * s[i]
                 } else {
                     let share = box_fraction(&sums, rows, cols, i / cols, i % cols, rad);
-                    u < s[i] * 2.0 * share
+                    u < s[i] * share
                 };
                 u8::from(ok && s[i] > 0.0)
             })

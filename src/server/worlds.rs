@@ -37,7 +37,7 @@ fn dictionary_alias(world: &WorldConfig) -> String {
     let d = &world.dictionary;
     let mut h = Sha256::new();
     h.update(format!(
-        "v2|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}",
+        "v2|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
         d.exemplars,
         d.atoms,
         d.patch,
@@ -47,6 +47,7 @@ fn dictionary_alias(world: &WorldConfig) -> String {
         // The vegetation layers derived at build time depend on the niche model.
         world.landscape.species,
         world.landscape.clustering,
+        d.vegetation_rasters,
     ));
     let digest = h.finalize();
     let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
@@ -57,8 +58,22 @@ fn build_dictionary(
     world: &WorldConfig,
     cfg: &DictionaryConfig,
 ) -> Result<Dictionary, ServerError> {
+    for (species, rasters) in &cfg.vegetation_rasters {
+        if !world.landscape.species.iter().any(|s| &s.name == species) {
+            return Err(ServerError::Internal(format!(
+                "vegetation raster for unknown species `{species}`"
+            )));
+        }
+        if rasters.len() != cfg.exemplars.len() {
+            return Err(ServerError::Internal(format!(
+                "species `{species}`: {} vegetation rasters for {} exemplars",
+                rasters.len(),
+                cfg.exemplars.len()
+            )));
+        }
+    }
     let mut exemplars = Vec::new();
-    for spec in &cfg.exemplars {
+    for (e, spec) in cfg.exemplars.iter().enumerate() {
         let t = Instant::now();
         let grid = load_raster(spec, &world.dir)?;
         let filled = grid
@@ -67,6 +82,30 @@ fn build_dictionary(
         let cells = grid.georef.cell_sizes(grid.rows());
         let mut layers = derived_layers(&filled, &cells);
         layers.extend(exemplar_vegetation(&world.landscape, &filled, &cells));
+        // The exemplar's own vegetation rasters replace the derived layers.
+        for (name, values, _) in layers.iter_mut() {
+            let Some(path) = cfg.vegetation_rasters.get(name).and_then(|r| r.get(e)) else {
+                continue;
+            };
+            if path.is_empty() {
+                continue;
+            }
+            let v = load_raster(path, &world.dir)?;
+            if v.data.dim() != filled.dim() {
+                return Err(ServerError::Internal(format!(
+                    "vegetation raster {path} is {:?}, exemplar {spec} is {:?}",
+                    v.data.dim(),
+                    filled.dim()
+                )));
+            }
+            *values = v.data.mapv(|d| {
+                if d.is_finite() {
+                    d.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            });
+        }
         tracing::info!(world = %world.name, exemplar = %spec, seconds = t.elapsed().as_secs_f64(), "dictionary: exemplar read and layers derived");
         let valid = grid.valid.clone();
         exemplars.push(Exemplar {
