@@ -1,6 +1,7 @@
 //! Shared fixtures of the integration tests: synthetic terrain and small dictionaries.
 #![allow(dead_code)]
 
+pub mod coherence;
 pub mod process;
 
 use std::sync::Arc;
