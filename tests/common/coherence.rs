@@ -82,6 +82,17 @@ pub fn decoded_elevation(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Arra
     })
 }
 
+/// The served upstream area (m²) over the mosaic.
+pub fn served_drainage(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Array2<f32> {
+    mosaic_of(n, |dx, dy| {
+        world
+            .drainage_tile(z, x0 + dx, y0 + dy)
+            .unwrap()
+            .as_ref()
+            .clone()
+    })
+}
+
 /// How one species fits its niche over a mosaic.
 #[derive(Debug)]
 pub struct SpeciesFit {
@@ -101,12 +112,7 @@ pub struct SpeciesFit {
 pub fn vegetation_fit(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Vec<SpeciesFit> {
     let size = 256 * n as usize;
     let elev = decoded_elevation(world, z, x0, y0, n);
-    let wet = mosaic_of(n, |dx, dy| {
-        world
-            .drainage_tile(z, x0 + dx, y0 + dy)
-            .unwrap()
-            .mapv(f32::log10)
-    });
+    let wet = served_drainage(world, z, x0, y0, n).mapv(f32::log10);
     let cells = world.cell_sizes(z, i64::from(y0) * 256, size);
     let slope = terrasynth::analysis::slope_degrees(&elev, &cells);
     let north = terrasynth::analysis::northness(&elev, &cells);
@@ -162,13 +168,7 @@ pub struct DrainageFit {
 pub fn drainage_fit(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> DrainageFit {
     let size = 256 * n as usize;
     let elev = decoded_elevation(world, z, x0, y0, n);
-    let served = mosaic_of(n, |dx, dy| {
-        world
-            .drainage_tile(z, x0 + dx, y0 + dy)
-            .unwrap()
-            .as_ref()
-            .clone()
-    });
+    let served = served_drainage(world, z, x0, y0, n);
     let cells = world.cell_sizes(z, i64::from(y0) * 256, size);
     let filled = terrasynth::analysis::priority_flood_fill(&elev);
     let d8 = terrasynth::analysis::flow_accumulation_d8(&filled, &cells);
