@@ -50,6 +50,7 @@ fn mini_world() -> World {
         dictionary_id: "mini-dictionary".into(),
         weights: MatchWeights::default(),
         cache_bytes: 16 << 20,
+        landscape: terrasynth::landscape::LandscapeConfig::tienshan(),
     })
     .unwrap()
 }

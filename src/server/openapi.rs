@@ -45,7 +45,7 @@ impl Modify for BearerAuth {
         license(name = "MIT OR Apache-2.0")
     ),
     paths(
-        tile, tilejson, worlds, world, healthz, metrics, openapi_json, dictionaries, dictionary,
+        tile, tilejson, style, worlds, world, healthz, metrics, openapi_json, dictionaries, dictionary,
         web_index, web_js, web_css, web_vendor,
         post_exemplar, list_exemplars, get_exemplar, delete_exemplar, post_dictionary,
         delete_dictionary, list_jobs, get_job, cancel_job, post_world, delete_world
@@ -142,6 +142,21 @@ fn tile() {}
     )
 )]
 fn tilejson() {}
+
+/// MapLibre style (version 8) of a world: its raster-dem as terrain and hillshade, the colour
+/// map, vegetation overlay and drainage overlay as raster layers switchable with
+/// `layout.visibility`.
+#[utoipa::path(
+    get,
+    path = "/styles/{file}",
+    tag = "tiles",
+    params(("file" = String, Path, description = "`{world}.json`")),
+    responses(
+        (status = 200, description = "MapLibre style", body = Object),
+        (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
+    )
+)]
+fn style() {}
 
 /// Every world.
 #[utoipa::path(get, path = "/worlds", tag = "meta",

@@ -502,6 +502,8 @@ impl Admin {
             dictionary_id: dict_id.clone(),
             weights: jobs::match_weights(&def.weights),
             cache_bytes: self.cache_bytes,
+            // Runtime worlds get the default world's landscape (species, materials).
+            landscape: crate::landscape::LandscapeConfig::tienshan(),
         })
         .map_err(|e| AdminError::Invalid(format!("cannot create the world: {e}")))
     }
