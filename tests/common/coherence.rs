@@ -1,6 +1,6 @@
 //! Coherence of the landscape layers with the served elevation (issue #4, acceptance 3 and 4),
 //! measured on mosaics of tiles of any world. Used by `tests/server.rs` on the synthetic mini
-//! world and by `examples/landscape_check.rs` on the default world. Expected values are computed
+//! world and by `scripts/examples/landscape_check.rs` on the default world. Expected values are computed
 //! here from the decoded elevation tiles with `analysis` and the configured ranges written out by
 //! hand, never by the landscape code under test.
 #![allow(dead_code)]

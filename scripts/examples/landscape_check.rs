@@ -6,7 +6,7 @@
 //! Usage: `cargo run --release --example landscape_check -- [STORE_DIR] [Z X0 Y0]` (defaults:
 //! `target/picture-store`, zoom 10 tiles 716..720 × 379..383 over the Talas range).
 
-#[path = "../tests/common/coherence.rs"]
+#[path = "../../tests/common/coherence.rs"]
 mod coherence;
 
 use std::error::Error;

@@ -1,5 +1,5 @@
-//! Build script: makes sure the web map's pinned front-end dependencies (MapLibre GL JS and
-//! playwright-core, `package-lock.json`) are installed in `node_modules`, so that a plain
+//! Build script (`build = "scripts/build_web.rs"` in Cargo.toml): makes sure the web map's
+//! pinned front-end dependencies (MapLibre GL JS and playwright-core, `package-lock.json`) are installed in `node_modules`, so that a plain
 //! `cargo run --release` in a fresh clone serves a working map at `/`. It runs
 //! `scripts/install_web.sh` (`npm ci`) only when `package-lock.json` is newer than the install,
 //! and never fails the build: without npm, or offline, it prints a warning and the page explains

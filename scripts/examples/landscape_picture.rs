@@ -3,7 +3,7 @@
 //! calls). Builds the default dictionary into a store directory on first use.
 //!
 //! Usage: `cargo run --release --example landscape_picture -- [STORE_DIR] [OUT.png] [Z X0 Y0 COLS ROWS]`
-//! (defaults: `target/picture-store`, `docs/landscape.png`, zoom 9 tiles 358..361 × 189..191 over
+//! (defaults: `target/picture-store`, `tests/pictures/landscape.png`, zoom 9 tiles 358..361 × 189..191 over
 //! the Talas range).
 
 use std::error::Error;
@@ -22,7 +22,9 @@ fn decode(bytes: &[u8]) -> Result<Vec<u8>, Box<dyn Error>> {
 fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let store = args.first().map_or("target/picture-store", String::as_str);
-    let out = args.get(1).map_or("docs/landscape.png", String::as_str);
+    let out = args
+        .get(1)
+        .map_or("tests/pictures/landscape.png", String::as_str);
     let num = |i: usize, d: u32| args.get(i).and_then(|v| v.parse().ok()).unwrap_or(d);
     let (z, x0, y0, cols, rows) = (num(2, 9), num(3, 358), num(4, 189), num(5, 3), num(6, 2));
     let mut config = terrasynth::config::load(None, Vec::new())?;
