@@ -2,13 +2,20 @@
 //! world builds its dictionary into a fresh store, serves plausible zoom-12 terrain over the
 //! Tien Shan, and two separately started processes return byte-identical tiles (at the native
 //! zoom and at amplified zooms). The second process reuses the store the first one filled.
+//! Issue #4's acceptance 3 and 4 on the default world, from tiles fetched over HTTP: vegetation
+//! follows the niche model on the served elevation, and drainage agrees with D8 on it.
 
 use std::io::Read;
 use std::net::TcpListener;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use terrasynth::tiles::decode_terrarium_png;
+use ndarray::Array2;
+use terrasynth::landscape::LandscapeConfig;
+use terrasynth::tiles::{decode_float_exr, decode_terrarium_png};
+
+#[path = "common/coherence.rs"]
+mod coherence;
 
 /// A server process, killed on drop.
 struct Server {
@@ -120,4 +127,74 @@ fn default_world_is_plausible_and_deterministic_across_processes() {
     // Errors on the real socket.
     assert_eq!(fetch(&b, "/tiles/tienshan/elevation/17/0/0.png").0, 404);
     assert_eq!(fetch(&b, "/tiles/tienshan/elevation/x/0/0.png").0, 400);
+}
+
+#[test]
+fn default_world_landscape_agrees_with_its_served_elevation() {
+    // A 4×4 mosaic of amplified zoom-10 tiles over the Talas range, decoded as a client would:
+    // terrarium elevation, the vegetation EXR (one named channel per species) and the drainage
+    // EXR (m²).
+    let store = tempfile::tempdir().unwrap();
+    let server = start(store.path());
+    let (z, x0, y0, n) = (10u8, 716u32, 379u32, 4u32);
+    let species = LandscapeConfig::tienshan().species;
+    let mut elev = Array2::zeros((256 * n as usize, 256 * n as usize));
+    let mut area = elev.clone();
+    let mut densities = vec![elev.clone(); species.len()];
+    let put = |dst: &mut Array2<f32>, dx: u32, dy: u32, t: &Array2<f32>| {
+        assert_eq!(t.dim(), (256, 256));
+        let (r, c) = (dy as usize * 256, dx as usize * 256);
+        dst.slice_mut(ndarray::s![r..r + 256, c..c + 256]).assign(t);
+    };
+    for dy in 0..n {
+        for dx in 0..n {
+            let (x, y) = (x0 + dx, y0 + dy);
+            let get = |layer: &str, ext: &str| {
+                let path = format!("/tiles/tienshan/{layer}/{z}/{x}/{y}.{ext}");
+                let (status, body) = fetch(&server, &path);
+                assert_eq!(status, 200, "{path}");
+                body
+            };
+            put(
+                &mut elev,
+                dx,
+                dy,
+                &decode_terrarium_png(&get("elevation", "png")).unwrap(),
+            );
+            let drainage = decode_float_exr(&get("drainage", "exr")).unwrap();
+            assert_eq!(drainage.len(), 1);
+            put(&mut area, dx, dy, &drainage[0].1);
+            let vegetation = decode_float_exr(&get("vegetation", "exr")).unwrap();
+            for (k, sp) in species.iter().enumerate() {
+                let (_, grid) = vegetation
+                    .iter()
+                    .find(|(name, _)| *name == sp.name)
+                    .unwrap_or_else(|| panic!("no {} channel", sp.name));
+                put(&mut densities[k], dx, dy, grid);
+            }
+        }
+    }
+    // Acceptance 3: Pearson ≥ 0.6 per species present, density < 0.05 where the niche excludes.
+    let wet = area.mapv(f32::log10);
+    let fits = coherence::vegetation_fit_of(&species, z, y0, &elev, &wet, &densities);
+    let mut tested = 0;
+    for f in &fits {
+        eprintln!("{f:?}");
+        assert!(f.worst_excluded < 0.05, "{f:?}");
+        if f.present > 0.02 {
+            assert!(f.pearson >= 0.6, "{f:?}");
+            tested += 1;
+        }
+    }
+    assert!(
+        tested >= 3,
+        "at least three species grow over the Talas range"
+    );
+    // Acceptance 4: Spearman ≥ 0.7 against D8 on the decoded elevation, channels walked across
+    // tile borders without a break.
+    let fit = coherence::drainage_fit_of(z, y0, &elev, &area);
+    eprintln!("{fit:?}");
+    assert!(fit.spearman >= 0.7, "{fit:?}");
+    assert!(fit.crossings >= 10, "{fit:?}");
+    assert!(fit.breaks.is_empty(), "{:?}", fit.breaks);
 }

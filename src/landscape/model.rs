@@ -193,7 +193,8 @@ pub struct LandscapeConfig {
     /// Seeding simulation.
     pub clustering: Clustering,
     /// Suitability at and above which synthesized densities are kept whole; below it they fade
-    /// smoothly to 0 at suitability 0 (the viability step on the served terrain).
+    /// smoothly to 0 at suitability 0 (the viability step on the served terrain, applied after
+    /// the niche has moved density among each parent pixel's children).
     pub viability: f32,
     /// Materials of the splat and colour maps (at least 1, at most 64), in splat order.
     pub materials: Vec<Material>,

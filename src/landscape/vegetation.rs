@@ -44,6 +44,61 @@ pub fn viability_gate(suit: f32, viability: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
+/// Redistributes densities inside each 2×2 block of a level's lattice according to a weight
+/// (the niche suitability on the served terrain): child `i` of a block gets
+/// `d_i · g_i · Σd / Σ(d·g)`, clamped to 1. The block's sum, hence the parent's density that the
+/// 2×2 average reproduces, is kept, while density moves from the block's poorly suited children to
+/// its well suited ones; a child whose weight is 0 gets 0, and a block whose children are all
+/// excluded loses its density. Blocks are aligned on even global coordinates: `row0`, `col0` are
+/// the global coordinates of `density[[0, 0]]`. Negative densities and NaN or negative weights
+/// count as 0.
+pub fn redistribute_in_blocks(
+    density: &mut Array2<f32>,
+    weight: &Array2<f32>,
+    row0: i64,
+    col0: i64,
+) {
+    let (rows, cols) = density.dim();
+    debug_assert_eq!(weight.dim(), (rows, cols));
+    // Local index ranges of the block rows (columns) covering the grid.
+    let spans = |n: usize, o: i64| -> Vec<(usize, usize)> {
+        let mut out = Vec::with_capacity(n / 2 + 2);
+        let mut i = 0usize;
+        while i < n {
+            let end = if (o + i as i64).rem_euclid(2) == 0 {
+                (i + 2).min(n)
+            } else {
+                i + 1
+            };
+            out.push((i, end));
+            i = end;
+        }
+        out
+    };
+    let col_spans = spans(cols, col0);
+    // NaN (no terrain) and negative weights count as 0.
+    let usable = |g: f32| if g > 0.0 { g } else { 0.0 };
+    for (r0, r1) in spans(rows, row0) {
+        for &(c0, c1) in &col_spans {
+            let (mut sum, mut weighted) = (0.0f32, 0.0f32);
+            for r in r0..r1 {
+                for c in c0..c1 {
+                    let d = density[[r, c]].max(0.0);
+                    sum += d;
+                    weighted += d * usable(weight[[r, c]]);
+                }
+            }
+            let scale = if weighted > 0.0 { sum / weighted } else { 0.0 };
+            for r in r0..r1 {
+                for c in c0..c1 {
+                    let d = density[[r, c]].max(0.0);
+                    density[[r, c]] = (d * usable(weight[[r, c]]) * scale).min(1.0);
+                }
+            }
+        }
+    }
+}
+
 /// Integral image of a 0/1 grid (`(rows+1) × (cols+1)`).
 fn integral(occ: &[u8], rows: usize, cols: usize) -> Vec<u32> {
     let mut s = vec![0u32; (rows + 1) * (cols + 1)];
@@ -204,6 +259,26 @@ mod tests {
         assert_eq!(viability_gate(0.0, 0.2), 0.0);
         assert_eq!(viability_gate(0.3, 0.2), 1.0);
         assert!((viability_gate(0.1, 0.2) - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn redistribution_keeps_block_sums_and_follows_the_weight() {
+        // Global origin (1, 0): local row 0 is the lower half of block row 0, rows 1–2 form block
+        // row 1. Worked by hand.
+        let mut d = ndarray::array![[0.4f32, 0.4, 0.2], [0.5, 0.5, 0.3], [0.5, 0.5, 0.1]];
+        let g = ndarray::array![[1.0f32, 0.0, 0.5], [1.0, 0.25, 0.0], [0.5, 0.25, 0.0]];
+        redistribute_in_blocks(&mut d, &g, 1, 0);
+        // Block {(0,0), (0,1)}: sum 0.8, weighted 0.4, so child 0 gets 0.4·1·2 = 0.8, child 1 0.
+        assert_eq!(d.row(0).to_vec()[..2], [0.8, 0.0]);
+        // Block {(0,2)} alone: kept.
+        assert_eq!(d[[0, 2]], 0.2);
+        // Block rows 1–2, columns 0–1: sum 2.0, weighted 0.5 + 0.125 + 0.25 + 0.125 = 1.0.
+        assert_eq!(d[[1, 0]], 1.0);
+        assert_eq!(d[[1, 1]], 0.25);
+        assert_eq!(d[[2, 0]], 0.5);
+        assert_eq!(d[[2, 1]], 0.25);
+        // Column 2 of rows 1–2: all weights 0, the density is lost.
+        assert_eq!((d[[1, 2]], d[[2, 2]]), (0.0, 0.0));
     }
 
     #[test]

@@ -9,8 +9,9 @@
 //!   atoms* as the elevation (the parent elevation window decides the matches; the species layers
 //!   of the atoms are blended and corrected so their 2×2 averages reproduce the parent densities;
 //!   a species the dictionary lacks is carried by the smooth up-sampling of its parent), then the
-//!   viability gate of the niche model on the served terrain zeroes it where the niche excludes
-//!   it. Drainage routes D8 on the amplified surface over the tile plus a [`DRAIN_HALO`]-pixel
+//!   niche model on the served terrain moves the density of each parent pixel among its 2×2
+//!   children in proportion to their suitability (the parent's density is kept), and the
+//!   viability step fades it on marginal ground and zeroes it where the niche excludes it. Drainage routes D8 on the amplified surface over the tile plus a [`DRAIN_HALO`]-pixel
 //!   halo (priority-flood filled), with sources = cell areas plus the parent level's upstream area
 //!   injected where parent flow enters the region: every parent pixel of the ring around the
 //!   region whose steepest descent points into it hands its area to the lowest child of the
@@ -404,7 +405,8 @@ impl World {
         } else {
             None
         };
-        // The viability gate on the served terrain.
+        // The niche on the served terrain moves density inside each parent pixel's 2×2 children
+        // (the parent's density is kept where the children can hold it).
         let terrain = self.terrain(z, w)?;
         let wet = self
             .drainage_level_tile(z, tx, ty)?
@@ -412,22 +414,22 @@ impl World {
         let viability = self.landscape.viability;
         let mut out = Vec::with_capacity(species.len());
         for (k, sp) in species.iter().enumerate() {
-            let raw = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
+            let mut d = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
                 Some(a) => a.clone(),
                 None => amp
                     .upsample_layer(&parent_veg[k], need, w)
                     .map_err(synth_err)?,
             };
-            let mut d = raw;
-            ndarray::Zip::from(&mut d)
-                .and(&terrain.elevation)
+            let suit = ndarray::Zip::from(&terrain.elevation)
                 .and(&terrain.slope)
                 .and(&terrain.northness)
                 .and(&wet)
-                .for_each(|v, &e, &s, &n, &wt| {
-                    let suit = vegetation::suitability(sp, e, s, n, wt);
-                    *v = v.clamp(0.0, 1.0) * vegetation::viability_gate(suit, viability);
-                });
+                .map_collect(|&e, &s, &n, &wt| vegetation::suitability(sp, e, s, n, wt));
+            vegetation::redistribute_in_blocks(&mut d, &suit, w.row0, w.col0);
+            // Then the viability step fades density on marginal ground.
+            ndarray::Zip::from(&mut d)
+                .and(&suit)
+                .for_each(|v, &s| *v *= vegetation::viability_gate(s, viability));
             out.push(d);
         }
         Ok(out)

@@ -12,6 +12,7 @@
 use std::f64::consts::PI;
 
 use crate::raster::georef::MERCATOR_RADIUS_M;
+use crate::raster::CellSizes;
 
 use super::error::TileError;
 
@@ -58,6 +59,22 @@ pub fn mercator_to_lonlat(x: f64, y: f64) -> (f64, f64) {
 /// equator).
 pub fn pixel_size_m(z: u8) -> f64 {
     2.0 * half_world_m() / (f64::from(TILE_SIZE) * tiles_per_side(z))
+}
+
+/// Per-row metric cell sizes of the rows `[row0, row0 + rows)` of zoom `z`'s pixel plane: the
+/// true Mercator scale at each row's latitude, for slopes, hillshades and cell areas.
+pub fn plane_cell_sizes(z: u8, row0: i64, rows: usize) -> CellSizes {
+    let world = f64::from(TILE_SIZE) * f64::from(1u32 << z.min(30));
+    let m = pixel_size_m(z);
+    let (dx, dy): (Vec<f64>, Vec<f64>) = (0..rows)
+        .map(|r| {
+            let py = (row0 + r as i64) as f64 + 0.5;
+            let yn = PI * (1.0 - 2.0 * py / world);
+            let c = m * yn.sinh().atan().cos();
+            (c, c)
+        })
+        .unzip();
+    CellSizes { dx, dy }
 }
 
 /// True ground size in metres of a pixel of zoom `z` at latitude `lat_deg`,

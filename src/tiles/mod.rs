@@ -21,8 +21,8 @@ pub use encode::{
 pub use error::TileError;
 pub use mercator::{
     ground_cell_m, lonlat_to_global_pixel, lonlat_to_mercator, mercator_to_lonlat, native_zoom,
-    pixel_size_m, tile_bounds_lonlat, tile_range_for_bounds, validate_tile, MAX_LATITUDE,
-    MAX_SUPPORTED_ZOOM, TILE_SIZE,
+    pixel_size_m, plane_cell_sizes, tile_bounds_lonlat, tile_range_for_bounds, validate_tile,
+    MAX_LATITUDE, MAX_SUPPORTED_ZOOM, TILE_SIZE,
 };
 pub use resample::mercator_window_from_grid;
 pub use tilejson::{TerrainEncoding, TileJson, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};

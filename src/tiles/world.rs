@@ -315,18 +315,7 @@ impl World {
     /// Per-row metric cell sizes of the rows `[row0, row0 + rows)` of zoom `z`'s pixel plane
     /// (true Mercator scale at each row's latitude), for slopes and hillshades.
     pub fn cell_sizes(&self, z: u8, row0: i64, rows: usize) -> CellSizes {
-        let world = (T as f64) * f64::from(1u32 << z.min(30));
-        let m = super::mercator::pixel_size_m(z);
-        let (dx, dy): (Vec<f64>, Vec<f64>) = (0..rows)
-            .map(|r| {
-                let py = (row0 + r as i64) as f64 + 0.5;
-                let yn = std::f64::consts::PI * (1.0 - 2.0 * py / world);
-                let lat = yn.sinh().atan();
-                let c = m * lat.cos();
-                (c, c)
-            })
-            .unzip();
-        CellSizes { dx, dy }
+        super::mercator::plane_cell_sizes(z, row0, rows)
     }
 
     /// The elevation tile `(z, x, y)`, 256×256 metres, after [`World::check_tile`]. CPU-bound:

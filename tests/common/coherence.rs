@@ -7,7 +7,7 @@
 
 use ndarray::{s, Array2};
 use terrasynth::landscape::{Species, Trapezoid};
-use terrasynth::tiles::{decode_terrarium_png, encode_terrarium_png, World};
+use terrasynth::tiles::{decode_terrarium_png, encode_terrarium_png, plane_cell_sizes, World};
 
 /// An `n × n` mosaic of 256-px tiles given by `tile(dx, dy)`.
 pub fn mosaic_of(n: u32, mut tile: impl FnMut(u32, u32) -> Array2<f32>) -> Array2<f32> {
@@ -106,16 +106,11 @@ pub struct SpeciesFit {
     pub worst_excluded: f32,
 }
 
-/// Acceptance 3 over the `n × n` mosaic of zoom-`z` tiles from `(x0, y0)`: the niche model on
-/// the decoded elevation (slope and northness from `analysis`, wetness from the served drainage)
-/// against each species' served density, one-pixel frame ignored.
+/// Acceptance 3 over the `n × n` mosaic of zoom-`z` tiles from `(x0, y0)` of `world`: see
+/// [`vegetation_fit_of`].
 pub fn vegetation_fit(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Vec<SpeciesFit> {
-    let size = 256 * n as usize;
     let elev = decoded_elevation(world, z, x0, y0, n);
     let wet = served_drainage(world, z, x0, y0, n).mapv(f32::log10);
-    let cells = world.cell_sizes(z, i64::from(y0) * 256, size);
-    let slope = terrasynth::analysis::slope_degrees(&elev, &cells);
-    let north = terrasynth::analysis::northness(&elev, &cells);
     let vegs: Vec<Vec<Array2<f32>>> = (0..n * n)
         .map(|i| {
             world
@@ -124,9 +119,30 @@ pub fn vegetation_fit(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Vec<Spe
                 .to_vec()
         })
         .collect();
+    let densities: Vec<Array2<f32>> = (0..world.landscape().species.len())
+        .map(|k| mosaic_of(n, |dx, dy| vegs[(dy * n + dx) as usize][k].clone()))
+        .collect();
+    vegetation_fit_of(&world.landscape().species, z, y0, &elev, &wet, &densities)
+}
+
+/// Acceptance 3 on mosaics whose first row is row `256·y0` of zoom `z`'s plane: the niche model
+/// on the decoded elevation `elev` (slope and northness from `analysis`, wetness `wet` = log10 of
+/// the served upstream area) against each species' served density (`densities`, in species
+/// order), one-pixel frame ignored.
+pub fn vegetation_fit_of(
+    species: &[Species],
+    z: u8,
+    y0: u32,
+    elev: &Array2<f32>,
+    wet: &Array2<f32>,
+    densities: &[Array2<f32>],
+) -> Vec<SpeciesFit> {
+    let size = elev.nrows();
+    let cells = plane_cell_sizes(z, i64::from(y0) * 256, size);
+    let slope = terrasynth::analysis::slope_degrees(elev, &cells);
+    let north = terrasynth::analysis::northness(elev, &cells);
     let mut out = Vec::new();
-    for (k, sp) in world.landscape().species.iter().enumerate() {
-        let d = mosaic_of(n, |dx, dy| vegs[(dy * n + dx) as usize][k].clone());
+    for (sp, d) in species.iter().zip(densities) {
         let (mut model, mut dens, mut worst) = (Vec::new(), Vec::new(), 0.0f32);
         for r in 1..size - 1 {
             for c in 1..size - 1 {
@@ -166,11 +182,17 @@ pub struct DrainageFit {
 /// and steps to the neighbour of largest area; a step across a border must land on a main-channel
 /// pixel carrying at least the flow of the last one, and the walk must end on the main channel.
 pub fn drainage_fit(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> DrainageFit {
-    let size = 256 * n as usize;
     let elev = decoded_elevation(world, z, x0, y0, n);
     let served = served_drainage(world, z, x0, y0, n);
-    let cells = world.cell_sizes(z, i64::from(y0) * 256, size);
-    let filled = terrasynth::analysis::priority_flood_fill(&elev);
+    drainage_fit_of(z, y0, &elev, &served)
+}
+
+/// Acceptance 4 on mosaics whose first row is row `256·y0` of zoom `z`'s plane: the decoded
+/// elevation `elev` and the served upstream area `served` (m²); see [`drainage_fit`].
+pub fn drainage_fit_of(z: u8, y0: u32, elev: &Array2<f32>, served: &Array2<f32>) -> DrainageFit {
+    let size = elev.nrows();
+    let cells = plane_cell_sizes(z, i64::from(y0) * 256, size);
+    let filled = terrasynth::analysis::priority_flood_fill(elev);
     let d8 = terrasynth::analysis::flow_accumulation_d8(&filled, &cells);
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for r in 16..size - 16 {
