@@ -341,6 +341,7 @@ pub async fn serve(config: crate::config::Config) -> Result<(), ServerError> {
     })
     .await
     .map_err(|e| ServerError::Internal(e.to_string()))??;
+    worlds::prepare_landscapes(state.live.snapshot().values().cloned().collect());
     if state.admin.as_ref().is_some_and(|a| a.enabled()) {
         tracing::info!("admin API enabled under /admin");
     } else {

@@ -195,3 +195,32 @@ pub fn load_worlds(config: &Config) -> Result<Worlds, ServerError> {
     }
     Ok(worlds)
 }
+
+/// Computes the whole-world landscape layers of `worlds` one after the other on a background
+/// thread ([`World::prepare_landscape`]), so that the first landscape tile of a world does not
+/// pay for them; a request that arrives first waits for the same computation.
+pub fn prepare_landscapes(worlds: Vec<Arc<World>>) {
+    let spawned = std::thread::Builder::new()
+        .name("landscape-prepare".into())
+        .spawn(move || {
+            for world in worlds {
+                let t = Instant::now();
+                match world.prepare_landscape() {
+                    Ok(bytes) => tracing::info!(
+                        world = %world.name(),
+                        mib = bytes as f64 / f64::from(1u32 << 20),
+                        seconds = t.elapsed().as_secs_f64(),
+                        "world: whole-world landscape layers ready"
+                    ),
+                    Err(e) => tracing::warn!(
+                        world = %world.name(),
+                        error = %e,
+                        "world: whole-world landscape layers failed; landscape tiles will answer errors"
+                    ),
+                }
+            }
+        });
+    if let Err(e) = spawned {
+        tracing::warn!("cannot start the landscape preparation thread: {e}");
+    }
+}

@@ -72,6 +72,19 @@ fn cut(a: &Array2<f32>, aw: Window, w: Window, fill: f32) -> Array2<f32> {
     out
 }
 
+/// The window of zoom `z`'s plane that the whole-world layers cover: the world's bounds
+/// `(w, s, e, n)` plus two pixels.
+pub(super) fn base_layer_window(z: u8, bounds: [f64; 4]) -> Window {
+    let (px0, py0) = lonlat_to_global_pixel(z, bounds[0], bounds[3]);
+    let (px1, py1) = lonlat_to_global_pixel(z, bounds[2], bounds[1]);
+    Window::from_bounds(
+        px0.floor() as i64 - 2,
+        py0.floor() as i64 - 2,
+        px1.ceil() as i64 + 2,
+        py1.ceil() as i64 + 2,
+    )
+}
+
 fn synth_err(e: impl std::fmt::Display) -> TileError {
     TileError::Synthesis(e.to_string())
 }
@@ -98,17 +111,20 @@ impl World {
             .clone()
     }
 
+    /// Computes the whole-world layers of the native zoom now (drainage of the whole base and
+    /// the base vegetation), which are otherwise computed by the first landscape request that
+    /// needs them; a request arriving meanwhile waits for the same computation. Returns the bytes
+    /// they hold.
+    pub fn prepare_landscape(&self) -> Result<u64, TileError> {
+        self.base_layers().map(|b| {
+            let grids = 1 + b.vegetation.len() as u64;
+            grids * b.window.len() as u64 * 4
+        })
+    }
+
     fn compute_base_layers(&self) -> Result<BaseLayers, TileError> {
         let z = self.z_base();
-        let b = self.bounds();
-        let (px0, py0) = lonlat_to_global_pixel(z, b[0], b[3]);
-        let (px1, py1) = lonlat_to_global_pixel(z, b[2], b[1]);
-        let window = Window::from_bounds(
-            px0.floor() as i64 - 2,
-            py0.floor() as i64 - 2,
-            px1.ceil() as i64 + 2,
-            py1.ceil() as i64 + 2,
-        );
+        let window = base_layer_window(z, self.bounds());
         if window.len() > (1 << 26) {
             return Err(synth_err(format!(
                 "the native-zoom window {window} is too large for whole-world layers"

@@ -56,8 +56,9 @@ pub struct WorldParts {
     pub dictionary_id: String,
     /// Matching weights.
     pub weights: MatchWeights,
-    /// Capacity of the world's level-tile caches together, bytes: half for elevation, a quarter
-    /// each for vegetation and drainage.
+    /// The world's memory budget, bytes: its whole-world landscape layers first, the rest (at
+    /// least a quarter) for its level-tile caches: half for elevation, a quarter each for
+    /// vegetation and drainage.
     pub cache_bytes: u64,
     /// Landscape layers: species niches, materials, drainage style.
     pub landscape: LandscapeConfig,
@@ -180,19 +181,28 @@ impl World {
             .map_err(|e| TileError::Synthesis(e.to_string()))?
             .with_only_layers(&parts.landscape.species_names());
         let fingerprint = fingerprint(&parts, z_base);
+        // The whole-world landscape layers (upstream area and one grid per species, f32) come
+        // out of the same budget; the level caches keep at least a quarter of it.
+        let base_window = super::layers::base_layer_window(z_base, bounds);
+        let base_bytes = (base_window.len() as u64)
+            .saturating_mul(4 * (1 + parts.landscape.species.len() as u64));
+        let budget = parts
+            .cache_bytes
+            .saturating_sub(base_bytes)
+            .max(parts.cache_bytes / 4);
         let cache = Cache::builder()
             .weigher(|_, _| TILE_BYTES)
-            .max_capacity(parts.cache_bytes / 2)
+            .max_capacity(budget / 2)
             .build();
         let vegetation_cache = Cache::builder()
             .weigher(|_, v: &Arc<Vec<Array2<f32>>>| {
                 u32::try_from(v.len().max(1)).map_or(u32::MAX, |n| n.saturating_mul(TILE_BYTES))
             })
-            .max_capacity(parts.cache_bytes / 4)
+            .max_capacity(budget / 4)
             .build();
         let drainage_cache = Cache::builder()
             .weigher(|_, _| TILE_BYTES)
-            .max_capacity(parts.cache_bytes / 4)
+            .max_capacity(budget / 4)
             .build();
         Ok(World {
             name: parts.name,

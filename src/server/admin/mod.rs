@@ -976,7 +976,9 @@ pub async fn post_world(
     })
     .await?;
     let native_zoom = world.z_base();
-    admin.live.insert(Arc::new(world));
+    let world = Arc::new(world);
+    admin.live.insert(world.clone());
+    super::worlds::prepare_landscapes(vec![world]);
     tracing::info!(world = %def.name, id = %id, "world created");
     let body = WorldCreated {
         id,
