@@ -185,6 +185,7 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
 }
 
 fn run_serve(args: ServeCli) -> Result<(), CliError> {
+    terrasynth::server::return_large_buffers_to_os();
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
