@@ -224,3 +224,87 @@ pub fn prepare_landscapes(worlds: Vec<Arc<World>>) {
         tracing::warn!("cannot start the landscape preparation thread: {e}");
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::{write_geotiff_file, Georef};
+    use ndarray::Array2;
+
+    /// A world whose one exemplar is a 96² hilly GeoTIFF in a temporary directory, with the
+    /// given `[dictionary.vegetation_rasters]` lines.
+    fn world_with(dir: &Path, rasters: &str) -> WorldConfig {
+        let hills = Array2::from_shape_fn((96, 96), |(r, c)| {
+            2200.0 + 300.0 * (c as f32 * 0.07).sin() * (r as f32 * 0.05).cos() + 2.0 * r as f32
+        });
+        write_geotiff_file(
+            &Grid::new(hills, Georef::local_metric(30.0)),
+            &dir.join("hills.tif"),
+        )
+        .unwrap();
+        let mut w: WorldConfig = toml::from_str(&format!(
+            "name = \"t\"\nbase = \"hills.tif\"\n[dictionary]\nexemplars = [\"hills.tif\"]\n\
+             atoms = 8\npatch = 16\nstride = 16\n[dictionary.vegetation_rasters]\n{rasters}\n"
+        ))
+        .unwrap();
+        w.dir = dir.to_path_buf();
+        w
+    }
+
+    fn write_density(dir: &Path, name: &str, rows: usize, values: impl Fn(usize, usize) -> f32) {
+        let grid = Grid::new(
+            Array2::from_shape_fn((rows, 96), |(r, c)| values(r, c)),
+            Georef::local_metric(30.0),
+        );
+        write_geotiff_file(&grid, &dir.join(name)).unwrap();
+    }
+
+    #[test]
+    fn exemplar_vegetation_rasters_replace_the_derived_layers() {
+        let dir = tempfile::tempdir().unwrap();
+        // Spruce from a raster: 0.7 everywhere but a NaN row (read as 0) and a row of 1.5
+        // (clamped to 1).
+        write_density(dir.path(), "spruce.tif", 96, |r, _| match r {
+            10 => f32::NAN,
+            20 => 1.5,
+            _ => 0.7,
+        });
+        let w = world_with(dir.path(), "spruce = [\"spruce.tif\"]");
+        let d = build_dictionary(&w, &w.dictionary).unwrap();
+        let spruce = d.layer_index("spruce").unwrap();
+        let juniper = d.layer_index("juniper").unwrap();
+        let mut spruce_values = std::collections::BTreeSet::new();
+        let mut juniper_values = std::collections::BTreeSet::new();
+        for i in 0..d.n_atoms {
+            spruce_values.extend(d.hi_layer(i, spruce).iter().map(|v| v.to_bits()));
+            juniper_values.extend(d.hi_layer(i, juniper).iter().map(|v| v.to_bits()));
+        }
+        let allowed = [0.0f32, 0.7, 1.0].map(f32::to_bits);
+        assert!(spruce_values.iter().all(|v| allowed.contains(v)));
+        assert!(spruce_values.contains(&0.7f32.to_bits()));
+        // Juniper keeps its niche-model layer: more than the raster's three values.
+        assert!(juniper_values.len() > 3, "{juniper_values:?}");
+    }
+
+    #[test]
+    fn bad_vegetation_rasters_are_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        write_density(dir.path(), "small.tif", 64, |_, _| 0.5);
+        for (lines, needle) in [
+            ("oak = [\"small.tif\"]", "unknown species `oak`"),
+            (
+                "spruce = [\"small.tif\", \"small.tif\"]",
+                "2 vegetation rasters for 1",
+            ),
+            (
+                "spruce = [\"small.tif\"]",
+                "vegetation raster small.tif is (64, 96)",
+            ),
+            ("spruce = [\"missing.tif\"]", "missing.tif"),
+        ] {
+            let w = world_with(dir.path(), lines);
+            let err = build_dictionary(&w, &w.dictionary).unwrap_err().to_string();
+            assert!(err.contains(needle), "{lines}: {err}");
+        }
+    }
+}
