@@ -167,29 +167,24 @@ pub fn cluster_densities(
     })
 }
 
-/// Suitability grids of every species on `elevation` given slope (degrees), northness and
-/// wetness grids of the same shape.
-pub fn suitability_grids(
-    cfg: &LandscapeConfig,
+/// Suitability grid of `sp` on `elevation` given slope (degrees), northness and wetness grids of
+/// the same shape.
+pub fn suitability_grid(
+    sp: &Species,
     elevation: &Array2<f32>,
     slope_deg: &Array2<f32>,
     northness: &Array2<f32>,
     wetness: &Array2<f32>,
-) -> Vec<Array2<f32>> {
-    cfg.species
-        .iter()
-        .map(|sp| {
-            ndarray::Zip::from(elevation)
-                .and(slope_deg)
-                .and(northness)
-                .and(wetness)
-                .map_collect(|&e, &s, &n, &w| suitability(sp, e, s, n, w))
-        })
-        .collect()
+) -> Array2<f32> {
+    ndarray::Zip::from(elevation)
+        .and(slope_deg)
+        .and(northness)
+        .and(wetness)
+        .map_collect(|&e, &s, &n, &w| suitability(sp, e, s, n, w))
 }
 
 /// Patchy densities of every species on a grid whose cell `(0, 0)` is global `(row0, col0)`:
-/// [`suitability_grids`] then [`cluster_densities`] per species.
+/// [`suitability_grid`] then [`cluster_densities`], one species at a time.
 pub fn densities(
     cfg: &LandscapeConfig,
     elevation: &Array2<f32>,
@@ -199,10 +194,14 @@ pub fn densities(
 ) -> Vec<Array2<f32>> {
     let slope = analysis::slope_degrees(elevation, cells);
     let north = analysis::northness(elevation, cells);
-    suitability_grids(cfg, elevation, &slope, &north, wetness)
+    // One species' suitability grid at a time: whole-world grids are large.
+    cfg.species
         .iter()
         .enumerate()
-        .map(|(k, s)| cluster_densities(s, origin.0, origin.1, &cfg.clustering, k as u64))
+        .map(|(k, sp)| {
+            let suit = suitability_grid(sp, elevation, &slope, &north, wetness);
+            cluster_densities(&suit, origin.0, origin.1, &cfg.clustering, k as u64)
+        })
         .collect()
 }
 

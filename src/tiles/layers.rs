@@ -132,9 +132,11 @@ impl World {
         }
         let elevation = self.elevation_window(z, window)?;
         let cells = self.cell_sizes(z, window.row0, window.rows);
-        let filled = analysis::priority_flood_fill(&elevation);
-        let area64 = analysis::flow_accumulation_d8(&filled, &cells);
+        let area64 =
+            analysis::flow_accumulation_d8(&analysis::priority_flood_fill(&elevation), &cells);
         let wet = analysis::log_upstream_area(&area64);
+        let area = area64.mapv(|v| v as f32);
+        drop(area64);
         let vegetation = vegetation::densities(
             &self.landscape,
             &elevation,
@@ -144,7 +146,7 @@ impl World {
         );
         Ok(BaseLayers {
             window,
-            area: area64.mapv(|v| v as f32),
+            area,
             vegetation,
         })
     }
@@ -436,11 +438,13 @@ impl World {
                     .upsample_layer(&parent_veg[k], need, w)
                     .map_err(synth_err)?,
             };
-            let suit = ndarray::Zip::from(&terrain.elevation)
-                .and(&terrain.slope)
-                .and(&terrain.northness)
-                .and(&wet)
-                .map_collect(|&e, &s, &n, &wt| vegetation::suitability(sp, e, s, n, wt));
+            let suit = vegetation::suitability_grid(
+                sp,
+                &terrain.elevation,
+                &terrain.slope,
+                &terrain.northness,
+                &wet,
+            );
             vegetation::redistribute_in_blocks(&mut d, &suit, w.row0, w.col0);
             // Then the viability step fades density on marginal ground.
             ndarray::Zip::from(&mut d)
