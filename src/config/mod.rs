@@ -101,9 +101,9 @@ impl ServerConfig {
         self.cache_mb.saturating_mul(1 << 20) / 4
     }
 
-    /// Bytes of each world's level-tile cache when `worlds` worlds are served: the other three
-    /// quarters of `cache_mb`, shared equally, so that all caches together hold at most
-    /// `cache_mb` MiB of tile data.
+    /// Bytes of each world's share when `worlds` worlds are served (its whole-world landscape
+    /// layers, then its level-tile caches): the other three quarters of `cache_mb`, shared
+    /// equally, so that all caches together hold at most `cache_mb` MiB of tile data.
     pub fn level_cache_bytes(&self, worlds: usize) -> u64 {
         let total = self.cache_mb.saturating_mul(1 << 20);
         (total - self.encoded_cache_bytes()) / (worlds.max(1) as u64)
