@@ -17,10 +17,9 @@ use axum::http::{header, Method, Request, StatusCode};
 use tower::ServiceExt;
 
 use terrasynth::config::{parse_world, Config, Secret, ServerConfig};
-use terrasynth::dictionary::MatchWeights;
-use terrasynth::raster::{Crs, Georef, Grid};
+use terrasynth::raster::{Georef, Grid};
 use terrasynth::server::{app, AppState, Worlds};
-use terrasynth::tiles::{World, WorldParts};
+use terrasynth::tiles::World;
 
 use common::{exr_bytes, geotiff_bytes, png16_bytes, small_dictionary, synthetic_terrain};
 
@@ -28,31 +27,13 @@ const TOKEN: &str = "test-token-0123";
 
 /// A small configured world `mini` (read-only for the admin API).
 fn mini_world() -> World {
-    let base = Grid::new(
+    common::mini_world(
         synthetic_terrain(240, 240, 3),
-        Georef {
-            crs: Crs::Epsg4326,
-            west: 70.0,
-            north: 43.0,
-            pixel_width: 1.0 / 240.0,
-            pixel_height: 1.0 / 240.0,
-        },
-    );
-    World::new(WorldParts {
-        name: "mini".into(),
-        title: "Mini".into(),
-        attribution: String::new(),
-        base,
-        z_base: Some(8),
-        max_zoom: 10,
-        fill_m: 0.0,
-        dictionary: small_dictionary(2),
-        dictionary_id: "mini-dictionary".into(),
-        weights: MatchWeights::default(),
-        cache_bytes: 16 << 20,
-        landscape: terrasynth::landscape::LandscapeConfig::tienshan(),
-    })
-    .unwrap()
+        small_dictionary(2),
+        "mini-dictionary",
+        10,
+        16 << 20,
+    )
 }
 
 fn config(store: &Path, token: &str, edit: impl FnOnce(&mut ServerConfig)) -> Config {

@@ -1,95 +1,47 @@
 //! End to end on the real binary and real sockets: `terrasynth serve` on the embedded default
 //! world builds its dictionary into a fresh store, serves plausible zoom-12 terrain over the
-//! Tien Shan, and two separately started processes return byte-identical tiles (at the native
-//! zoom and at amplified zooms). The second process reuses the store the first one filled.
+//! Tien Shan, and two separately started processes return byte-identical tiles of every layer (at
+//! the native zoom and at amplified zooms). The second process reuses the store the first one filled.
 //! Issue #4's acceptance 3 and 4 on the default world, from tiles fetched over HTTP: vegetation
 //! follows the niche model on the served elevation, and drainage agrees with D8 on it.
-
-use std::io::Read;
-use std::net::TcpListener;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
 
 use ndarray::Array2;
 use terrasynth::landscape::LandscapeConfig;
 use terrasynth::tiles::{decode_float_exr, decode_terrarium_png};
 
-#[path = "common/coherence.rs"]
-mod coherence;
+mod common;
+use common::coherence;
+use common::process::{self, Server};
 
-/// A server process, killed on drop.
-struct Server {
-    child: Child,
-    base: String,
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
-}
-
+/// `terrasynth serve` on the default world with its store in `store`.
 fn start(store: &std::path::Path) -> Server {
-    let port = free_port();
-    let child = Command::new(env!("CARGO_BIN_EXE_terrasynth"))
-        .args(["serve", "--listen", &format!("127.0.0.1:{port}")])
-        .env("TERRASYNTH_STORE_DIR", store)
-        .env("TERRASYNTH_CACHE_MB", "256")
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start terrasynth serve");
-    let server = Server {
-        child,
-        base: format!("http://127.0.0.1:{port}"),
-    };
-    let deadline = Instant::now() + Duration::from_secs(240);
-    loop {
-        if let Ok(r) = ureq::get(&format!("{}/healthz", server.base)).call() {
-            if r.status() == 200 {
-                return server;
-            }
-        }
-        assert!(Instant::now() < deadline, "server did not become healthy");
-        std::thread::sleep(Duration::from_millis(250));
-    }
+    process::start(&[], &[("TERRASYNTH_CACHE_MB", "256")], store)
 }
 
 fn fetch(server: &Server, path: &str) -> (u16, Vec<u8>) {
-    let resp = ureq::get(&format!("{}{path}", server.base))
-        .config()
-        .http_status_as_error(false)
-        .build()
-        .call()
-        .expect("request");
-    let status = resp.status().as_u16();
-    let mut body = Vec::new();
-    resp.into_body()
-        .into_reader()
-        .read_to_end(&mut body)
-        .expect("body");
-    (status, body)
+    process::get(server, path, None)
 }
 
 #[test]
 fn default_world_is_plausible_and_deterministic_across_processes() {
     let store = tempfile::tempdir().unwrap();
     // Zoom 12 over the Kyrgyz Ala-Too south of Bishkek (74.6°E, 42.55°N), zoom 8 (native), and
-    // zoom 10 (amplified).
+    // zoom 10 (amplified), elevation and every landscape layer.
     let paths = [
         "/tiles/tienshan/elevation/12/2896/1512.png",
         "/tiles/tienshan/elevation/8/181/94.png",
         "/tiles/tienshan/elevation/10/724/378.png",
         "/tiles/tienshan/hillshade/10/724/378.png",
+        // Every landscape layer, at the native zoom and an amplified one.
+        "/tiles/tienshan/vegetation/8/181/94.png",
+        "/tiles/tienshan/drainage/8/181/94.exr",
+        "/tiles/tienshan/vegetation/10/724/378.exr",
+        "/tiles/tienshan/vegetation/10/724/378.png",
+        "/tiles/tienshan/drainage/10/724/378.exr",
+        "/tiles/tienshan/drainage/10/724/378.png",
+        "/tiles/tienshan/splat/10/724/378.png?set=0",
+        "/tiles/tienshan/splat/10/724/378.png?set=1",
+        "/tiles/tienshan/color/10/724/378.png",
     ];
     let first: Vec<Vec<u8>> = {
         let a = start(store.path());

@@ -15,41 +15,22 @@ use tower::ServiceExt;
 use terrasynth::config::ServerConfig;
 use terrasynth::dictionary::MatchWeights;
 use terrasynth::landscape::LandscapeConfig;
-use terrasynth::raster::{Crs, Georef, Grid};
 use terrasynth::server::{app, AppState, Worlds};
 use terrasynth::synth::{Amplifier, Field, Window};
-use terrasynth::tiles::{decode_mapbox_png, decode_terrarium_png, World, WorldParts};
+use terrasynth::tiles::{decode_mapbox_png, decode_terrarium_png, World};
 
 use common::coherence::{drainage_fit, mosaic_of, vegetation_fit};
-use common::{small_dictionary_with_vegetation, synthetic_terrain};
+use common::{mini_world, small_dictionary_with_vegetation, synthetic_terrain};
 
 /// A 6°×5° world (70–76°E, 38–43°N) of synthetic terrain at 15″, native zoom 8, max zoom 11.
 fn small_world() -> World {
-    let base = Grid::new(
+    mini_world(
         synthetic_terrain(1200, 1440, 3).mapv(|v| v + 1000.0),
-        Georef {
-            crs: Crs::Epsg4326,
-            west: 70.0,
-            north: 43.0,
-            pixel_width: 1.0 / 240.0,
-            pixel_height: 1.0 / 240.0,
-        },
-    );
-    World::new(WorldParts {
-        name: "mini".into(),
-        title: "Mini".into(),
-        attribution: "synthetic".into(),
-        base,
-        z_base: Some(8),
-        max_zoom: 11,
-        fill_m: 0.0,
-        dictionary: small_dictionary_with_vegetation(2),
-        dictionary_id: "test-dictionary".into(),
-        weights: MatchWeights::default(),
-        cache_bytes: 64 << 20,
-        landscape: LandscapeConfig::tienshan(),
-    })
-    .unwrap()
+        small_dictionary_with_vegetation(2),
+        "test-dictionary",
+        11,
+        64 << 20,
+    )
 }
 
 fn router(config: &ServerConfig) -> axum::Router {

@@ -111,3 +111,40 @@ pub fn exr_bytes(rows: usize, cols: usize, seed: u64) -> Vec<u8> {
     .expect("a forest layer");
     terrasynth::raster::write_exr(&r).expect("write an EXR")
 }
+
+/// A world `mini` of synthetic terrain `heights` at 15″ whose north-west corner is 70°E 43°N
+/// (EPSG:4326), native zoom 8, the default Tien Shan landscape.
+pub fn mini_world(
+    heights: Array2<f32>,
+    dictionary: Arc<Dictionary>,
+    dictionary_id: &str,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> terrasynth::tiles::World {
+    use terrasynth::raster::{Crs, Georef, Grid};
+    let base = Grid::new(
+        heights,
+        Georef {
+            crs: Crs::Epsg4326,
+            west: 70.0,
+            north: 43.0,
+            pixel_width: 1.0 / 240.0,
+            pixel_height: 1.0 / 240.0,
+        },
+    );
+    terrasynth::tiles::World::new(terrasynth::tiles::WorldParts {
+        name: "mini".into(),
+        title: "Mini".into(),
+        attribution: "synthetic".into(),
+        base,
+        z_base: Some(8),
+        max_zoom,
+        fill_m: 0.0,
+        dictionary,
+        dictionary_id: dictionary_id.into(),
+        weights: terrasynth::dictionary::MatchWeights::default(),
+        cache_bytes,
+        landscape: terrasynth::landscape::LandscapeConfig::tienshan(),
+    })
+    .expect("a valid mini world")
+}
