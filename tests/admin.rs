@@ -1014,3 +1014,44 @@ async fn cancelled_and_queued_builds_leave_nothing_and_a_full_queue_is_503() {
         .flatten()
         .all(|e| !e.file_name().to_string_lossy().starts_with(".tmp")));
 }
+
+/// A GeoTIFF upload whose body arrives in two halves `stall` apart.
+fn slow_upload(stall: Duration) -> Request<Body> {
+    let bytes = geotiff_bytes(32, 32, 1);
+    let (head, tail) = bytes.split_at(bytes.len() / 2);
+    let parts = vec![head.to_vec(), tail.to_vec()];
+    let stream = futures_util::stream::unfold((0usize, parts), move |(i, parts)| async move {
+        if i == 1 {
+            tokio::time::sleep(stall).await;
+        }
+        let part = parts.get(i)?.clone();
+        Some((Ok::<_, std::io::Error>(part), (i + 1, parts)))
+    });
+    Request::builder()
+        .method(Method::POST)
+        .uri("/admin/exemplars?name=slow")
+        .header(header::AUTHORIZATION, format!("Bearer {TOKEN}"))
+        .header(header::CONTENT_TYPE, "image/tiff")
+        .body(Body::from_stream(stream))
+        .unwrap()
+}
+
+#[tokio::test]
+async fn uploads_have_their_own_timeout() {
+    // `request_timeout_s` = 1 bounds tile and metadata requests; an upload whose body takes 2 s
+    // to arrive is accepted under the default `upload_timeout_s` (an hour) ...
+    let store = tempfile::tempdir().unwrap();
+    let app = router_with(store.path(), TOKEN, |s| s.request_timeout_s = 1);
+    let (st, v) = send_json(&app, slow_upload(Duration::from_secs(2))).await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    // ... and answered 503, storing nothing, when `upload_timeout_s` is 1 s too.
+    let store = tempfile::tempdir().unwrap();
+    let app = router_with(store.path(), TOKEN, |s| {
+        s.request_timeout_s = 1;
+        s.upload_timeout_s = 1;
+    });
+    let before = store_files(store.path());
+    let (st, _) = send_json(&app, slow_upload(Duration::from_secs(2))).await;
+    assert_eq!(st, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(store_files(store.path()), before);
+}

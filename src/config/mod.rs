@@ -69,8 +69,11 @@ pub struct ServerConfig {
     pub synth_concurrency: usize,
     /// Tile requests allowed to wait for a computation slot (beyond: 503).
     pub synth_queue: usize,
-    /// Request timeout, seconds.
+    /// Request timeout, seconds (admin requests have [`ServerConfig::upload_timeout_s`]).
     pub request_timeout_s: u64,
+    /// Timeout of admin API requests, seconds: an exemplar upload of `max_body_mb` over a slow
+    /// link takes far longer than a tile.
+    pub upload_timeout_s: u64,
     /// World files, relative to the configuration file's directory.
     pub worlds: Vec<String>,
     /// Directory of the MapLibre GL JS distribution the web map loads (relative paths are
@@ -137,6 +140,7 @@ impl Default for ServerConfig {
             synth_concurrency: 2,
             synth_queue: 256,
             request_timeout_s: 60,
+            upload_timeout_s: 3600,
             worlds: vec!["worlds/tienshan.toml".into()],
             web_vendor_dir: PathBuf::from("node_modules/maplibre-gl/dist"),
             admin_token: Secret::default(),
@@ -343,8 +347,10 @@ fn validate(s: &ServerConfig) -> Result<(), ConfigError> {
             "max_body_mb, max_pixels, max_dimension and max_layers must be ≥ 1".into(),
         ));
     }
-    if s.request_timeout_s == 0 {
-        return Err(ConfigError::Invalid("request_timeout_s must be ≥ 1".into()));
+    if s.request_timeout_s == 0 || s.upload_timeout_s == 0 {
+        return Err(ConfigError::Invalid(
+            "request_timeout_s and upload_timeout_s must be ≥ 1".into(),
+        ));
     }
     Ok(())
 }
@@ -386,6 +392,7 @@ pub fn apply_env(
             "SYNTH_CONCURRENCY" => s.synth_concurrency = num(&name, &v)?,
             "SYNTH_QUEUE" => s.synth_queue = num(&name, &v)?,
             "REQUEST_TIMEOUT_S" => s.request_timeout_s = num(&name, &v)?,
+            "UPLOAD_TIMEOUT_S" => s.upload_timeout_s = num(&name, &v)?,
             "ADMIN_TOKEN" => s.admin_token = Secret(v.trim().to_string()),
             "BUILD_WORKERS" => s.build_workers = num(&name, &v)?,
             "BUILD_THREADS" => s.build_threads = num(&name, &v)?,

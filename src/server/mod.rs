@@ -236,6 +236,7 @@ fn cors(config: &ServerConfig) -> CorsLayer {
 /// The router of the whole HTTP API.
 pub fn app(state: AppState) -> Router {
     let timeout = Duration::from_secs(state.config.request_timeout_s.max(1));
+    let upload_timeout = Duration::from_secs(state.config.upload_timeout_s.max(1));
     let json = Router::new()
         .route("/worlds", get(meta::worlds))
         .route("/dictionaries", get(admin::list_dictionaries))
@@ -283,24 +284,28 @@ pub fn app(state: AppState) -> Router {
                 admin::authorize,
             ))
             .layer(axum::extract::DefaultBodyLimit::max(max_body))
+            .layer(tower_http::timeout::TimeoutLayer::with_status_code(
+                StatusCode::SERVICE_UNAVAILABLE,
+                upload_timeout,
+            ))
     } else {
         Router::new()
     };
     Router::new()
         .route("/tiles/{world}/{layer}/{z}/{x}/{y}", get(tiles::tile))
-        .merge(admin_routes)
         .route("/healthz", get(meta::healthz))
         .route("/metrics", get(meta::metrics))
         .merge(json)
         .merge(web)
+        .layer(tower_http::timeout::TimeoutLayer::with_status_code(
+            StatusCode::SERVICE_UNAVAILABLE,
+            timeout,
+        ))
+        .merge(admin_routes)
         .fallback(not_found)
         .layer(middleware::from_fn_with_state(
             state.clone(),
             record_metrics,
-        ))
-        .layer(tower_http::timeout::TimeoutLayer::with_status_code(
-            StatusCode::SERVICE_UNAVAILABLE,
-            timeout,
         ))
         .layer(tower::limit::GlobalConcurrencyLimitLayer::new(4096))
         .layer(cors(&state.config))
