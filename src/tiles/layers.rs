@@ -85,6 +85,12 @@ pub(super) fn base_layer_window(z: u8, bounds: [f64; 4]) -> Window {
     )
 }
 
+/// Bytes the whole-world layers over `window` hold: the upstream area and one grid per species,
+/// f32 each.
+pub(super) fn base_layer_bytes(window: Window, species: usize) -> u64 {
+    (window.len() as u64).saturating_mul(4 * (1 + species as u64))
+}
+
 fn synth_err(e: impl std::fmt::Display) -> TileError {
     TileError::Synthesis(e.to_string())
 }
@@ -116,10 +122,8 @@ impl World {
     /// needs them; a request arriving meanwhile waits for the same computation. Returns the bytes
     /// they hold.
     pub fn prepare_landscape(&self) -> Result<u64, TileError> {
-        self.base_layers().map(|b| {
-            let grids = 1 + b.vegetation.len() as u64;
-            grids * b.window.len() as u64 * 4
-        })
+        self.base_layers()
+            .map(|b| base_layer_bytes(b.window, b.vegetation.len()))
     }
 
     fn compute_base_layers(&self) -> Result<BaseLayers, TileError> {

@@ -181,11 +181,12 @@ impl World {
             .map_err(|e| TileError::Synthesis(e.to_string()))?
             .with_only_layers(&parts.landscape.species_names());
         let fingerprint = fingerprint(&parts, z_base);
-        // The whole-world landscape layers (upstream area and one grid per species, f32) come
-        // out of the same budget; the level caches keep at least a quarter of it.
-        let base_window = super::layers::base_layer_window(z_base, bounds);
-        let base_bytes = (base_window.len() as u64)
-            .saturating_mul(4 * (1 + parts.landscape.species.len() as u64));
+        // The whole-world landscape layers come out of the same budget; the level caches keep
+        // at least a quarter of it.
+        let base_bytes = super::layers::base_layer_bytes(
+            super::layers::base_layer_window(z_base, bounds),
+            parts.landscape.species.len(),
+        );
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
