@@ -357,7 +357,7 @@ fn validate(s: &ServerConfig) -> Result<(), ConfigError> {
 
 /// Applies `TERRASYNTH_<KEY>` overrides (`LISTEN`, `CACHE_MB`, `STORE_DIR`, `CORS_ORIGINS` as a
 /// comma-separated list, `CACHE_CONTROL`, `SYNTH_CONCURRENCY`, `SYNTH_QUEUE`,
-/// `REQUEST_TIMEOUT_S`, `ADMIN_TOKEN`, `BUILD_WORKERS`, `BUILD_THREADS`, `BUILD_QUEUE`,
+/// `REQUEST_TIMEOUT_S`, `UPLOAD_TIMEOUT_S`, `ADMIN_TOKEN`, `BUILD_WORKERS`, `BUILD_THREADS`, `BUILD_QUEUE`,
 /// `MAX_BODY_MB`, `MAX_PIXELS`, `MAX_DIMENSION`, `MAX_LAYERS`). Other `TERRASYNTH_*` variables are ignored.
 pub fn apply_env(
     s: &mut ServerConfig,
@@ -451,10 +451,13 @@ mod tests {
                 "TERRASYNTH_CORS_ORIGINS".into(),
                 "https://a.example, https://b.example".into(),
             ),
+            ("TERRASYNTH_UPLOAD_TIMEOUT_S".into(), "120".into()),
             ("UNRELATED".into(), "x".into()),
         ];
         let c = load(Some(Path::new("config/default.toml")), env).unwrap();
         assert_eq!(c.server.listen, "127.0.0.1:9999");
+        assert_eq!(c.server.upload_timeout_s, 120);
+        assert_eq!(c.server.request_timeout_s, 60);
         assert_eq!(c.server.cache_mb, 64);
         assert_eq!(
             c.server.cors_origins,
@@ -485,6 +488,16 @@ mod tests {
         assert!(matches!(
             load(Some(&p), Vec::new()),
             Err(ConfigError::Invalid(_))
+        ));
+        std::fs::write(&p, "upload_timeout_s = 5\nworlds = []\n").unwrap();
+        assert_eq!(
+            load(Some(&p), Vec::new()).unwrap().server.upload_timeout_s,
+            5
+        );
+        std::fs::write(&p, "upload_timeout_s = 0\nworlds = []\n").unwrap();
+        assert!(matches!(
+            load(Some(&p), Vec::new()),
+            Err(ConfigError::Invalid(m)) if m.contains("upload_timeout_s")
         ));
         std::fs::write(&p, "worlds = [\"missing.toml\"]\n").unwrap();
         assert!(matches!(
