@@ -2,18 +2,21 @@
 //! matching (patches per second) and one amplification level (output points per second) with a
 //! warm default dictionary. Run with `cargo bench --bench pipeline`.
 
+// A measurement tool: a failed unwrap aborts the run with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use ndarray::{s, Array2};
-use terrasynth::dictionary::build::{build, BuildOptions, Exemplar};
-use terrasynth::dictionary::derive::derived_layers;
-use terrasynth::dictionary::features::centre_normalise;
-use terrasynth::dictionary::format::{read_dictionary, write_dictionary};
-use terrasynth::dictionary::matching::{best_match_naive, MatchScratch, Query};
-use terrasynth::dictionary::{Dictionary, MatchWeights, Matcher};
-use terrasynth::raster::embedded;
-use terrasynth::synth::{Amplifier, Field, Window};
+use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
+use terrasynth_core::dictionary::derive::derived_layers;
+use terrasynth_core::dictionary::features::centre_normalise;
+use terrasynth_core::dictionary::format::{read_dictionary, write_dictionary};
+use terrasynth_core::dictionary::matching::{best_match_naive, MatchScratch, Query};
+use terrasynth_core::dictionary::{Dictionary, MatchWeights, Matcher};
+use terrasynth_core::raster::embedded;
+use terrasynth_core::synth::{Amplifier, Field, Window};
 
 /// The default dictionary (embedded exemplar, default options, derived layers), cached under
 /// `target/` so that repeated bench runs do not rebuild it.

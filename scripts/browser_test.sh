@@ -4,15 +4,17 @@
 #   1. Installs Debian's `chromium` with apt-get if /usr/bin/chromium is missing (as root, or with
 #      sudo), and the pinned npm dependencies (MapLibre GL JS, playwright-core) with
 #      scripts/install_web.sh.
-#   2. Builds the release binary (skip with --no-build) and starts it on 127.0.0.1:PORT with the
-#      default world (its dictionary store under target/browser-store is kept between runs).
+#   2. Builds the release binary (skip with --no-build, or run another with --bin PATH: .ci/run
+#      passes the binary `cargo test` built) and starts it on 127.0.0.1:PORT with the default
+#      world (its dictionary store under target/browser-store is kept between runs).
 #   3. Runs tests/browser/map_test.mjs: no console errors or failed requests, tiles of every layer
 #      answered 200/304, the canvas drawn, a fly-to at zoom 13 still drawn, the elevation readout
 #      plausible. Screenshots and the recorded tile trace (browser-trace.txt, replayable with
 #      scripts/loadtest.sh --trace) go to OUT.
 #   4. Stops the server (also on failure or Ctrl-C) and exits with the test's status.
 #
-# Usage: scripts/browser_test.sh [--no-build] [--port N] [--out DIR]   (defaults: 18090, target/browser)
+# Usage: scripts/browser_test.sh [--no-build] [--bin PATH] [--port N] [--out DIR]
+#        (defaults: target/release/terrasynth, 18090, target/browser)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,9 +22,11 @@ cd "$ROOT"
 PORT=18090
 OUT="$ROOT/target/browser"
 BUILD=1
+BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/terrasynth"
 while (($#)); do
     case "$1" in
         --no-build) BUILD=0 ;;
+        --bin) BIN="$2"; BUILD=0; shift ;;
         --port) PORT="$2"; shift ;;
         --out) OUT="$2"; shift ;;
         -h | --help) sed -n '2,/^$/p' "${BASH_SOURCE[0]}" | sed -e 's/^# \{0,1\}//'; exit 0 ;;
@@ -42,11 +46,10 @@ fi
 command -v node >/dev/null || { log "node is not installed"; exit 1; }
 bash scripts/install_web.sh
 
-BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/terrasynth"
 if ((BUILD)); then
     cargo build --release --quiet
 fi
-[[ -x "$BIN" ]] || { log "no release binary at $BIN (drop --no-build)"; exit 1; }
+[[ -x "$BIN" ]] || { log "no binary at $BIN (drop --no-build)"; exit 1; }
 
 mkdir -p "$OUT"
 SERVER_LOG="$OUT/server.log"

@@ -2,14 +2,20 @@
 # Runs schemathesis against a live `terrasynth serve` with the committed OpenAPI description
 # (openapi/openapi.json): checks that no response is a 5xx and that every response conforms to
 # its schema. Installs a pinned schemathesis with pip into a virtualenv under target/ (nothing
-# global), starts the debug binary with an admin token on a free port and a store under target/,
-# and stops the server when done. Usage: scripts/schemathesis.sh [--release] [extra schemathesis args]
+# global), starts the binary with an admin token on a free port and a store under target/, and
+# stops the server when done. The binary is target/debug/terrasynth (built by `cargo build`, or by
+# `cargo test`, which .ci/run runs first: then `--no-build` reuses it), or the release one.
+# Usage: scripts/schemathesis.sh [--release] [--no-build] [extra schemathesis args]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 SCHEMATHESIS_VERSION=4.32.5
 PROFILE=debug
-if [[ "${1:-}" == "--release" ]]; then PROFILE=release; shift; fi
+BUILD=1
+while [[ "${1:-}" == "--release" || "${1:-}" == "--no-build" ]]; do
+    if [[ "$1" == "--release" ]]; then PROFILE=release; else BUILD=0; fi
+    shift
+done
 
 VENV=target/schemathesis-venv
 if [[ ! -x "$VENV/bin/schemathesis" ]] || ! "$VENV/bin/schemathesis" --version | grep -q "$SCHEMATHESIS_VERSION"; then
@@ -17,8 +23,11 @@ if [[ ! -x "$VENV/bin/schemathesis" ]] || ! "$VENV/bin/schemathesis" --version |
     "$VENV/bin/pip" install --quiet --disable-pip-version-check "schemathesis==$SCHEMATHESIS_VERSION"
 fi
 
-if [[ "$PROFILE" == release ]]; then cargo build --release --quiet; else cargo build --quiet; fi
+if ((BUILD)); then
+    if [[ "$PROFILE" == release ]]; then cargo build --release --quiet; else cargo build --quiet; fi
+fi
 BIN="target/$PROFILE/terrasynth"
+[[ -x "$BIN" ]] || { echo "schemathesis: no binary at $BIN (drop --no-build)" >&2; exit 1; }
 
 PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 TOKEN="schemathesis-$RANDOM$RANDOM"

@@ -1,18 +1,10 @@
-//! terrasynth: synthesized terrain, real at coarse scale and detailed at any zoom.
-//!
-//! The library holds the synchronous, deterministic pipeline — [`raster`] (grids and files),
-//! [`analysis`] (terrain derivatives, flow routing, realism metrics), [`dictionary`] (multi-layer
-//! dictionaries of exemplar patches and matching), [`synth`] (one ×2 amplification level and level
-//! chains) — plus the command line's building blocks in [`cli`]. See `ARCHITECTURE.md`.
-#![deny(missing_docs)]
+//! terrasynth: the tile server and command line over the pipeline crates. [`config`] loads the
+//! server and world settings, [`server`] is the HTTP API (axum) and [`cli`] holds the command
+//! line's commands as library functions; `main.rs` parses arguments and calls them. The layers
+//! below live in their own crates: `terrasynth-core` (the numeric pipeline), `terrasynth-tiles`
+//! (pyramids, renderers, encoders) and `terrasynth-store` (the on-disk store and its rules). See
+//! `ARCHITECTURE.md`.
 
-pub mod analysis;
 pub mod cli;
 pub mod config;
-pub mod dictionary;
-pub mod landscape;
-pub mod raster;
 pub mod server;
-pub mod store;
-pub mod synth;
-pub mod tiles;

@@ -7,8 +7,10 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use terrasynth::cli::{amplify, build, crop, eval, CliError};
-use terrasynth::dictionary::build::BuildOptions;
-use terrasynth::dictionary::{Learning, MatchWeights};
+use terrasynth::config::ConfigError;
+use terrasynth::server::StartupError;
+use terrasynth_core::dictionary::build::BuildOptions;
+use terrasynth_core::dictionary::{Learning, MatchWeights, PixelWindow};
 
 #[derive(Parser)]
 #[command(
@@ -81,11 +83,11 @@ struct BuildCli {
     #[arg(long, default_value_t = BuildOptions::default().seed)]
     seed: u64,
     /// Atom selection: `complete` or `medoids[:ITERATIONS]`.
-    #[arg(long, default_value = "medoids", value_parser = build::parse_learning)]
+    #[arg(long, default_value = "medoids")]
     learning: Learning,
     /// Keep a window COL,ROW,WIDTH,HEIGHT of the exemplar out of the dictionary; repeatable.
     #[arg(long, value_name = "COL,ROW,WIDTH,HEIGHT")]
-    exclude: Vec<build::Exclusion>,
+    exclude: Vec<PixelWindow>,
     /// Do not add the derived layers (log_area, northness).
     #[arg(long)]
     no_derived: bool,
@@ -130,7 +132,7 @@ struct CropCli {
     input: PathBuf,
     /// Window COL,ROW,WIDTH,HEIGHT in input cells.
     #[arg(long)]
-    window: build::Exclusion,
+    window: PixelWindow,
     /// Box down-sampling factor after cropping.
     #[arg(long, default_value_t = 1)]
     down: usize,
@@ -184,7 +186,21 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
     Ok(())
 }
 
-fn run_serve(args: ServeCli) -> Result<(), CliError> {
+/// Why a command failed.
+#[derive(Debug, thiserror::Error)]
+enum Failure {
+    /// A command-line command failed.
+    #[error(transparent)]
+    Cli(#[from] CliError),
+    /// The configuration could not be loaded.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The server could not start or stopped on an error.
+    #[error(transparent)]
+    Serve(#[from] StartupError),
+}
+
+fn run_serve(args: ServeCli) -> Result<(), Failure> {
     terrasynth::server::return_large_buffers_to_os();
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -201,11 +217,11 @@ fn run_serve(args: ServeCli) -> Result<(), CliError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|e| CliError::Usage(format!("cannot start the runtime: {e}")))?;
+        .map_err(|e| StartupError::Runtime(format!("cannot start the runtime: {e}")))?;
     Ok(runtime.block_on(terrasynth::server::serve(config))?)
 }
 
-fn run(cli: Cli) -> Result<(), CliError> {
+fn run(cli: Cli) -> Result<(), Failure> {
     let command = cli.command.unwrap_or(Command::Serve(ServeCli::default()));
     match command {
         Command::Serve(args) => run_serve(args),
@@ -213,7 +229,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             print!("{}", terrasynth::server::openapi::spec_json());
             Ok(())
         }
-        Command::Dictionary(DictionaryCommand::Build(args)) => run_build(args),
+        Command::Dictionary(DictionaryCommand::Build(args)) => Ok(run_build(args)?),
         Command::Amplify(a) => {
             let s = amplify::run(&amplify::AmplifyArgs {
                 dictionary: a.dictionary,

@@ -6,8 +6,10 @@
 //! Usage: `cargo run --release --example landscape_check -- [STORE_DIR] [Z X0 Y0]` (defaults:
 //! `target/picture-store`, zoom 10 tiles 716..720 × 379..383 over the Talas range).
 
-#[path = "../../tests/common/coherence.rs"]
-mod coherence;
+// A measurement tool: a failed unwrap aborts the run with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use terrasynth_test_support::coherence;
 
 use std::error::Error;
 
@@ -18,7 +20,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     let (z, x0, y0) = (num(1, 10) as u8, num(2, 716), num(3, 379));
     let mut config = terrasynth::config::load(None, Vec::new())?;
     config.server.store_dir = store.into();
-    let worlds = terrasynth::server::load_worlds(&config)?;
+    let store = terrasynth_store::Store::open(&config.server.store_dir)?;
+    let worlds = terrasynth::server::load_worlds(&config, &store)?;
     let world = worlds.get("tienshan").ok_or("no default world")?;
     println!(
         "default world, zoom {z}, tiles {x0}..{} × {y0}..{}",

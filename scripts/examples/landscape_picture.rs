@@ -6,10 +6,13 @@
 //! (defaults: `target/picture-store`, `tests/pictures/landscape.png`, zoom 9 tiles 358..361 × 189..191 over
 //! the Talas range).
 
+// A measurement tool: a failed unwrap aborts the run with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use std::error::Error;
 
 use ndarray::Array2;
-use terrasynth::server::tiles::{parse_request, render};
+use terrasynth_tiles::{parse_request, render};
 
 fn decode(bytes: &[u8]) -> Result<Vec<u8>, Box<dyn Error>> {
     let mut reader = png::Decoder::new(std::io::Cursor::new(bytes)).read_info()?;
@@ -29,7 +32,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     let (z, x0, y0, cols, rows) = (num(2, 9), num(3, 358), num(4, 189), num(5, 3), num(6, 2));
     let mut config = terrasynth::config::load(None, Vec::new())?;
     config.server.store_dir = store.into();
-    let worlds = terrasynth::server::load_worlds(&config)?;
+    let store = terrasynth_store::Store::open(&config.server.store_dir)?;
+    let worlds = terrasynth::server::load_worlds(&config, &store)?;
     let world = worlds.get("tienshan").ok_or("no default world")?;
     let mut img = Array2::from_elem((256 * rows as usize, 256 * cols as usize), [0u8; 4]);
     let none = Default::default();
@@ -61,7 +65,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             }
         }
     }
-    std::fs::write(out, terrasynth::tiles::encode_rgba_png(&img)?)?;
+    std::fs::write(out, terrasynth_tiles::encode_rgba_png(&img)?)?;
     println!(
         "wrote {out} (zoom {z}, tiles {x0}..{} × {y0}..{})",
         x0 + cols,

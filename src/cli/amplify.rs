@@ -8,11 +8,11 @@ use std::time::Instant;
 use ndarray::Array2;
 
 use super::error::CliError;
-use crate::dictionary::derive::derived_layers;
-use crate::dictionary::format::read_dictionary;
-use crate::dictionary::{Dictionary, MatchWeights};
-use crate::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
-use crate::synth::{amplify_chain, Amplifier, ClampedRaster, Window};
+use terrasynth_core::dictionary::derive::derived_layers;
+use terrasynth_core::dictionary::format::read_dictionary;
+use terrasynth_core::dictionary::{Dictionary, MatchWeights};
+use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::synth::{amplify_chain, Amplifier, ClampedRaster, Window};
 
 /// Extra layers by name.
 pub type NamedLayers = Vec<(String, Array2<f32>)>;
@@ -98,12 +98,18 @@ pub fn amplify_grid(
         .map(|_| Amplifier::new(dict.clone(), weights))
         .collect::<Result<Vec<_>, _>>()?;
     let factor = 1usize << levels;
-    let out = Window::new(0, 0, grid.cols() * factor, grid.rows() * factor);
+    let too_large = || CliError::Usage(format!("{levels} levels make the output too large"));
+    let out = Window::new(
+        0,
+        0,
+        grid.cols().checked_mul(factor).ok_or_else(too_large)?,
+        grid.rows().checked_mul(factor).ok_or_else(too_large)?,
+    );
     let field = amplify_chain(&amps, &base, out, cells.mean_cell())?;
     let has_invalid = grid.valid_count() < grid.data.len();
     let valid = has_invalid.then(|| {
         Array2::from_shape_fn((out.rows, out.cols), |(r, c)| {
-            grid.is_valid(r / factor, c / factor)
+            grid.is_valid(r >> levels, c >> levels)
         })
     });
     let georef = grid.georef.refined(factor as f64);

@@ -4,48 +4,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use ndarray::Array2;
-
 use super::error::CliError;
-use crate::dictionary::build::{build, BuildOptions, Exemplar};
-use crate::dictionary::derive::derived_layers;
-use crate::dictionary::format::{content_id, write_dictionary};
-use crate::dictionary::{LayerKind, Learning};
-use crate::raster::{embedded, read_raster_file, Grid, ReadLimits, ELEVATION};
-
-/// A pixel window `col,row,width,height` of an exemplar kept out of the dictionary (for held-out
-/// evaluation).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Exclusion {
-    /// First column.
-    pub col: usize,
-    /// First row.
-    pub row: usize,
-    /// Width in cells.
-    pub width: usize,
-    /// Height in cells.
-    pub height: usize,
-}
-
-impl std::str::FromStr for Exclusion {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let v: Vec<usize> = s
-            .split(',')
-            .map(|p| p.trim().parse::<usize>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| format!("`{s}`: {e}; expected COL,ROW,WIDTH,HEIGHT"))?;
-        match v[..] {
-            [col, row, width, height] => Ok(Exclusion {
-                col,
-                row,
-                width,
-                height,
-            }),
-            _ => Err(format!("`{s}`: expected COL,ROW,WIDTH,HEIGHT")),
-        }
-    }
-}
+use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
+use terrasynth_core::dictionary::format::{content_id, write_dictionary};
+use terrasynth_core::dictionary::{no_species, ExemplarOptions, LayerKind, PixelWindow};
+use terrasynth_core::raster::{embedded, read_raster_file, Grid, ReadLimits, ELEVATION};
 
 /// Arguments of `dictionary build`.
 #[derive(Clone, Debug, Default)]
@@ -57,7 +20,7 @@ pub struct BuildArgs {
     /// Extra named layers `(name, file)`, on the grid of the (single) exemplar.
     pub layers: Vec<(String, PathBuf)>,
     /// Windows of the exemplars to keep out of the dictionary.
-    pub exclude: Vec<Exclusion>,
+    pub exclude: Vec<PixelWindow>,
     /// Build options (patch, stride, atoms, learning, seed).
     pub options: BuildOptions,
     /// Skip the derived layers (`log_area`, `northness`).
@@ -79,37 +42,6 @@ pub struct BuildSummary {
     pub bytes: usize,
 }
 
-/// The build exemplar of `grid`: NaN-free elevation, validity mask (minus `exclude`), metric cell
-/// size, the `extra` layers and, with `derive`, the derived layers.
-pub fn to_exemplar(
-    grid: &Grid,
-    extra: Vec<(String, Array2<f32>, LayerKind)>,
-    exclude: &[Exclusion],
-    derive: bool,
-) -> Result<Exemplar, CliError> {
-    grid.require_some_valid()?;
-    let filled = grid.filled()?;
-    let cells = grid.georef.cell_sizes(grid.rows());
-    let mut layers = extra;
-    if derive {
-        layers.extend(derived_layers(&filled, &cells));
-    }
-    let mut valid = Array2::from_shape_fn(grid.data.dim(), |(r, c)| grid.is_valid(r, c));
-    for ex in exclude {
-        for r in ex.row..(ex.row + ex.height).min(grid.rows()) {
-            for c in ex.col..(ex.col + ex.width).min(grid.cols()) {
-                valid[[r, c]] = false;
-            }
-        }
-    }
-    Ok(Exemplar {
-        elevation: filled,
-        valid: Some(valid),
-        cell_m: cells.mean_cell(),
-        layers,
-    })
-}
-
 /// Runs the build and writes the dictionary to `output`. `progress(stage, fraction)` is called as
 /// the build advances.
 pub fn run(
@@ -123,7 +55,13 @@ pub fn run(
             "give at least one --exemplar FILE, or --default".into(),
         ));
     }
-    if !args.layers.is_empty() && args.exemplars.len() + usize::from(args.default_exemplar) != 1 {
+    if !args.layers.is_empty()
+        && args
+            .exemplars
+            .len()
+            .saturating_add(usize::from(args.default_exemplar))
+            != 1
+    {
         return Err(CliError::Usage(
             "--layer needs exactly one exemplar (layers lie on its grid)".into(),
         ));
@@ -173,14 +111,18 @@ pub fn run(
         .iter()
         .enumerate()
         .map(|(i, g)| {
-            let layers = if i == 0 { extra.clone() } else { Vec::new() };
-            to_exemplar(g, layers, &args.exclude, !args.no_derived)
+            let options = ExemplarOptions {
+                extra: if i == 0 { extra.clone() } else { Vec::new() },
+                exclude: args.exclude.clone(),
+                derive: !args.no_derived,
+            };
+            Exemplar::from_grid(g, options, no_species)
         })
         .collect::<Result<Vec<_>, _>>()?;
     let dict = build(&exemplars, &args.options, progress)?;
     let mut bytes = Vec::new();
     write_dictionary(&dict, &mut bytes)?;
-    crate::store::write_atomically(output, &bytes)?;
+    terrasynth_store::write_atomically(output, &bytes)?;
     Ok(BuildSummary {
         id: content_id(&dict)?,
         atoms: dict.n_atoms,
@@ -188,19 +130,4 @@ pub fn run(
         seconds: start.elapsed().as_secs_f64(),
         bytes: bytes.len(),
     })
-}
-
-/// Parses `--learning`: `complete` or `medoids[:ITERATIONS]`.
-pub fn parse_learning(s: &str) -> Result<Learning, String> {
-    match s.split_once(':') {
-        None if s == "complete" => Ok(Learning::Complete),
-        None if s == "medoids" => Ok(Learning::Medoids { iterations: 6 }),
-        Some(("medoids", n)) => n
-            .parse()
-            .map(|iterations| Learning::Medoids { iterations })
-            .map_err(|e| format!("`{s}`: {e}")),
-        _ => Err(format!(
-            "`{s}`: expected `complete` or `medoids[:ITERATIONS]`"
-        )),
-    }
 }

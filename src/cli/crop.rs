@@ -5,9 +5,9 @@ use std::path::PathBuf;
 
 use ndarray::s;
 
-use super::build::Exclusion;
 use super::error::CliError;
-use crate::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::dictionary::PixelWindow;
+use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
 
 /// Arguments of `crop`.
 #[derive(Clone, Debug)]
@@ -15,7 +15,7 @@ pub struct CropArgs {
     /// Input GeoTIFF.
     pub input: PathBuf,
     /// Window `COL,ROW,WIDTH,HEIGHT` in input cells.
-    pub window: Exclusion,
+    pub window: PixelWindow,
     /// Box down-sampling factor applied after cropping (1 = none; must divide the window).
     pub down: usize,
     /// Output GeoTIFF.
@@ -29,11 +29,12 @@ pub fn run(args: &CropArgs) -> Result<Grid, CliError> {
         .elevation()
         .ok_or_else(|| CliError::Usage("the input has no elevation layer".into()))?;
     let w = args.window;
-    if w.width == 0
-        || w.height == 0
-        || w.col + w.width > grid.cols()
-        || w.row + w.height > grid.rows()
-    {
+    // Checked sums: a window of absurd numbers is an error, not a wrap-around.
+    let (col_end, row_end) = match (w.col_end(), w.row_end()) {
+        (Some(c), Some(r)) if c <= grid.cols() && r <= grid.rows() => (c, r),
+        _ => (0, 0),
+    };
+    if w.width == 0 || w.height == 0 || col_end == 0 || row_end == 0 {
         return Err(CliError::Usage(format!(
             "window {},{},{},{} does not fit the {}×{} input",
             w.col,
@@ -44,7 +45,7 @@ pub fn run(args: &CropArgs) -> Result<Grid, CliError> {
             grid.rows()
         )));
     }
-    if args.down == 0 || w.width % args.down != 0 || w.height % args.down != 0 {
+    if w.width.checked_rem(args.down) != Some(0) || w.height.checked_rem(args.down) != Some(0) {
         return Err(CliError::Usage(format!(
             "--down {} must divide the window size {}×{}",
             args.down, w.width, w.height
@@ -53,18 +54,18 @@ pub fn run(args: &CropArgs) -> Result<Grid, CliError> {
     let cut = Grid {
         data: grid
             .data
-            .slice(s![w.row..w.row + w.height, w.col..w.col + w.width])
+            .slice(s![w.row..row_end, w.col..col_end])
             .to_owned(),
         georef: grid.georef.window(w.col as i64, w.row as i64),
-        valid: grid.valid.as_ref().map(|m| {
-            m.slice(s![w.row..w.row + w.height, w.col..w.col + w.width])
-                .to_owned()
-        }),
+        valid: grid
+            .valid
+            .as_ref()
+            .map(|m| m.slice(s![w.row..row_end, w.col..col_end]).to_owned()),
     };
     cut.require_some_valid()?;
     let out = if args.down > 1 {
         let filled = cut.filled()?;
-        let down = crate::analysis::box_down(&filled, args.down)
+        let down = terrasynth_core::analysis::box_down(&filled, args.down)
             .map_err(|e| CliError::Usage(e.to_string()))?;
         Grid::new(down, cut.georef.refined(1.0 / args.down as f64))
     } else {

@@ -2,9 +2,9 @@
 
 use thiserror::Error;
 
-use crate::dictionary::DictionaryError;
-use crate::raster::RasterError;
-use crate::synth::SynthError;
+use terrasynth_core::dictionary::DictionaryError;
+use terrasynth_core::raster::RasterError;
+use terrasynth_core::synth::SynthError;
 
 /// An error of a command-line command.
 #[derive(Debug, Error)]
@@ -17,13 +17,7 @@ pub enum CliError {
     Dictionary(#[from] DictionaryError),
     /// The store failed.
     #[error(transparent)]
-    Store(#[from] crate::store::StoreError),
-    /// The configuration could not be loaded.
-    #[error(transparent)]
-    Config(#[from] crate::config::ConfigError),
-    /// The server failed.
-    #[error(transparent)]
-    Server(#[from] crate::server::ServerError),
+    Store(#[from] terrasynth_store::StoreError),
     /// Amplification failed.
     #[error(transparent)]
     Synth(#[from] SynthError),

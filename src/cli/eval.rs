@@ -8,9 +8,9 @@ use ndarray::Array2;
 use serde::Serialize;
 
 use super::error::CliError;
-use crate::analysis;
-use crate::raster::{read_raster_file, CellSizes, Grid, ReadLimits};
-use crate::synth::baselines::{bicubic_upsample, fbm_upsample};
+use terrasynth_core::analysis;
+use terrasynth_core::raster::{read_raster_file, CellSizes, Grid, ReadLimits};
+use terrasynth_core::synth::baselines::{bicubic_upsample, fbm_upsample};
 
 /// Seed of the fBm baseline's noise.
 pub const FBM_SEED: u64 = 0x7e55_a5e1;
@@ -147,8 +147,11 @@ pub fn evaluate(truth: &Grid, input: &Grid, output: &Grid) -> Result<EvalReport,
             output.rows()
         )));
     }
-    let factor = truth.cols() / input.cols().max(1);
-    if factor < 2 || input.cols() * factor != truth.cols() || input.rows() * factor != truth.rows()
+    let factor = truth.cols().checked_div(input.cols()).unwrap_or(0);
+    let scaled = |n: usize| n.checked_mul(factor);
+    if factor < 2
+        || scaled(input.cols()) != Some(truth.cols())
+        || scaled(input.rows()) != Some(truth.rows())
     {
         return Err(CliError::Usage(format!(
             "the input ({}×{}) must be the truth ({}×{}) down-sampled by an integer factor ≥ 2",

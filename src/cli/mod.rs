@@ -2,6 +2,8 @@
 //! process: `dictionary build`, `amplify`, `eval` and `crop`. `src/main.rs` only parses arguments
 //! and calls these.
 
+#![warn(clippy::arithmetic_side_effects)]
+
 pub mod amplify;
 pub mod build;
 pub mod crop;

@@ -9,12 +9,13 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use thiserror::Error;
 
-use crate::dictionary::MatchWeights;
+use terrasynth_core::dictionary::MatchWeights;
 
 /// The embedded copy of `config/default.toml`.
 pub const DEFAULT_TOML: &str = include_str!("../../config/default.toml");
-/// The embedded copy of `config/worlds/tienshan.toml`.
-pub const TIENSHAN_TOML: &str = include_str!("../../config/worlds/tienshan.toml");
+/// The embedded copy of `config/worlds/tienshan.toml` (the core crate embeds it, beside the
+/// default world's data).
+pub const TIENSHAN_TOML: &str = terrasynth_core::assets::TIENSHAN_WORLD_TOML;
 /// Where the default configuration file is looked for.
 pub const DEFAULT_PATH: &str = "config/default.toml";
 
@@ -222,8 +223,8 @@ pub struct WorldConfig {
     pub weights: MatchWeights,
     /// Landscape layers: species niches, materials, drainage style (`[landscape]`; the default
     /// world's when absent).
-    #[serde(default = "crate::landscape::LandscapeConfig::tienshan")]
-    pub landscape: crate::landscape::LandscapeConfig,
+    #[serde(default = "terrasynth_core::landscape::LandscapeConfig::tienshan")]
+    pub landscape: terrasynth_core::landscape::LandscapeConfig,
     /// Directory the world file's relative paths are resolved against (set when loading).
     #[serde(skip)]
     pub dir: PathBuf,

@@ -1,43 +1,95 @@
-//! The server's error: every module error rolled up into one type that implements
-//! `IntoResponse` as an RFC 9457 `application/problem+json` body, never leaking internals.
+//! The server's request error: every crate's error rolled up into one type that implements
+//! `IntoResponse` as an RFC 9457 `application/problem+json` body, never leaking internals (5xx
+//! details are logged, not sent). Start-up failures are a separate type, [`StartupError`].
 
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use thiserror::Error;
 
-use super::admin::AdminError;
-use crate::config::ConfigError;
-use crate::store::StoreError;
-use crate::tiles::TileError;
+use terrasynth_store::{ServiceError, StoreError};
+use terrasynth_tiles::{RequestError, TileError};
 
-/// An error answering a request or starting the server.
+use crate::config::ConfigError;
+
+/// An error answering a request.
 #[derive(Debug, Error)]
 pub enum ServerError {
-    /// A path segment or query parameter is malformed (400).
+    /// A path segment, query parameter or body is malformed (400).
     #[error("{0}")]
     BadRequest(String),
-    /// No such world, layer, format or tile (404).
+    /// No such resource (404).
     #[error("{0}")]
     NotFound(String),
+    /// Missing or wrong bearer token (401).
+    #[error("{0}")]
+    Unauthorized(String),
+    /// The body is larger than allowed (413).
+    #[error("{0}")]
+    TooLarge(String),
+    /// Wrong content type (415).
+    #[error("{0}")]
+    UnsupportedMediaType(String),
+    /// Well-formed but unusable (422).
+    #[error("{0}")]
+    Invalid(String),
     /// The synthesis queue is full (503 with `Retry-After`).
     #[error("the synthesis queue is full; retry shortly")]
     Busy,
+    /// The tile URL names no tile.
+    #[error(transparent)]
+    Request(#[from] RequestError),
     /// A tile could not be produced.
     #[error(transparent)]
     Tile(#[from] TileError),
-    /// Configuration could not be loaded.
+    /// A catalogue rule was broken or the store failed.
     #[error(transparent)]
-    Config(#[from] ConfigError),
-    /// The store failed.
-    #[error(transparent)]
-    Store(#[from] StoreError),
-    /// An admin or catalogue request failed.
-    #[error(transparent)]
-    Admin(#[from] AdminError),
+    Service(#[from] ServiceError),
     /// Something else failed inside the server (500).
     #[error("internal error: {0}")]
     Internal(String),
+}
+
+impl From<StoreError> for ServerError {
+    fn from(e: StoreError) -> Self {
+        ServerError::Service(ServiceError::Store(e))
+    }
+}
+
+/// An error starting the server.
+#[derive(Debug, Error)]
+pub enum StartupError {
+    /// The configuration could not be loaded.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The store could not be opened.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The catalogue service could not start.
+    #[error(transparent)]
+    Service(#[from] ServiceError),
+    /// A configured world could not be loaded.
+    #[error("world `{world}`: {message}")]
+    World {
+        /// The world's name.
+        world: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// The listening address is in use or not available.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A setting is unusable.
+    #[error("invalid setting: {0}")]
+    Setting(String),
+    /// The runtime or the server loop failed.
+    #[error("server failed: {0}")]
+    Runtime(String),
 }
 
 /// An RFC 9457 problem document.
@@ -58,8 +110,16 @@ impl ServerError {
     /// The HTTP status of this error.
     pub fn status(&self) -> StatusCode {
         match self {
-            ServerError::BadRequest(_) => StatusCode::BAD_REQUEST,
-            ServerError::NotFound(_) => StatusCode::NOT_FOUND,
+            ServerError::BadRequest(_) | ServerError::Request(RequestError::BadRequest(_)) => {
+                StatusCode::BAD_REQUEST
+            }
+            ServerError::NotFound(_) | ServerError::Request(RequestError::NotFound(_)) => {
+                StatusCode::NOT_FOUND
+            }
+            ServerError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
+            ServerError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ServerError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ServerError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ServerError::Busy => StatusCode::SERVICE_UNAVAILABLE,
             ServerError::Tile(
                 TileError::OutOfRange { .. }
@@ -67,11 +127,29 @@ impl ServerError {
                 | TileError::OutsideWorld { .. },
             ) => StatusCode::NOT_FOUND,
             ServerError::Tile(TileError::Decode(_)) => StatusCode::BAD_REQUEST,
-            ServerError::Admin(e) => e.status(),
-            // An id or name that cannot even be a file name names nothing.
-            ServerError::Store(StoreError::BadName(_)) => StatusCode::NOT_FOUND,
-            _ => StatusCode::INTERNAL_SERVER_ERROR,
+            ServerError::Tile(_) | ServerError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            ServerError::Service(e) => match e {
+                ServiceError::NotFound(_) => StatusCode::NOT_FOUND,
+                ServiceError::Conflict(_) => StatusCode::CONFLICT,
+                ServiceError::Undecodable(_) => StatusCode::BAD_REQUEST,
+                ServiceError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+                ServiceError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
+                ServiceError::QueueFull => StatusCode::SERVICE_UNAVAILABLE,
+                // An id or name that cannot even be a file name names nothing.
+                ServiceError::Store(StoreError::BadName(_)) => StatusCode::NOT_FOUND,
+                ServiceError::Store(_) | ServiceError::Internal(_) => {
+                    StatusCode::INTERNAL_SERVER_ERROR
+                }
+            },
         }
+    }
+
+    /// Whether this is an overload answer (503 with `Retry-After`), not a failure.
+    fn is_overload(&self) -> bool {
+        matches!(
+            self,
+            ServerError::Busy | ServerError::Service(ServiceError::QueueFull)
+        )
     }
 }
 
@@ -95,11 +173,8 @@ pub fn problem(status: StatusCode, detail: &str) -> Response {
 impl IntoResponse for ServerError {
     fn into_response(self) -> Response {
         let status = self.status();
-        let quiet = matches!(
-            self,
-            ServerError::Busy | ServerError::Admin(AdminError::QueueFull)
-        );
-        let detail = if status.is_server_error() && !quiet {
+        let overload = self.is_overload();
+        let detail = if status.is_server_error() && !overload {
             // Internals are logged, not sent.
             tracing::error!(error = %self, "request failed");
             "the server could not produce this resource".to_string()
@@ -107,11 +182,11 @@ impl IntoResponse for ServerError {
             self.to_string()
         };
         let mut resp = problem(status, &detail);
-        if quiet {
+        if overload {
             resp.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
         }
-        if matches!(self, ServerError::Admin(AdminError::Unauthorized(_))) {
+        if matches!(self, ServerError::Unauthorized(_)) {
             resp.headers_mut().insert(
                 header::WWW_AUTHENTICATE,
                 HeaderValue::from_static("Bearer realm=\"terrasynth admin\""),

@@ -1,5 +1,7 @@
 //! Metadata handlers: `/worlds`, `/worlds/{world}`, TileJSON per layer, the MapLibre style of a
-//! world (`/styles/{world}.json`), `/healthz`, `/metrics`.
+//! world (`/styles/{world}.json`), `/healthz`, `/metrics`. The documents themselves come from the
+//! tiles crate ([`terrasynth_tiles::style`]); this module only adds the base URL clients reached
+//! us at.
 
 use axum::extract::{Path, State};
 use axum::http::{header, HeaderMap, HeaderValue};
@@ -7,45 +9,11 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
 
-use super::error::ServerError;
-use super::AppState;
-use crate::tiles::{TerrainEncoding, TileJson, World};
+use terrasynth_tiles::style::{style_json, tilejson_of, LAYERS};
+use terrasynth_tiles::{TileJson, World};
 
-/// The layers every world serves.
-pub const LAYERS: [&str; 6] = [
-    "elevation",
-    "hillshade",
-    "vegetation",
-    "drainage",
-    "splat",
-    "color",
-];
-
-/// What the TileJSON of a landscape layer says about its tiles.
-fn layer_description(w: &World, layer: &str) -> Option<String> {
-    let l = w.landscape();
-    let names = |v: Vec<&str>| v.join(", ");
-    match layer {
-        "vegetation" => Some(format!(
-            "Species densities × 255, one a channel (set n = species 4n..4n+3 with ?set=n; \
-             ?style=overlay for a coloured overlay); .exr: float densities, one named channel \
-             per species. Species: {}",
-            names(l.species.iter().map(|s| s.name.as_str()).collect())
-        )),
-        "drainage" => Some(
-            "Upstream area in m²: .exr float32 channel upstream_area; .png log-scaled rivers on \
-             transparent"
-                .into(),
-        ),
-        "splat" => Some(format!(
-            "Material weights, RGBA = materials 4n..4n+3 of ?set=n (all sets of a pixel sum to \
-             255). Materials: {}",
-            names(l.materials.iter().map(|m| m.name.as_str()).collect())
-        )),
-        "color" => Some("Baked material colour shaded by the hillshade".into()),
-        _ => None,
-    }
-}
+use super::error::{Problem, ServerError};
+use super::state::AppState;
 
 /// JSON description of a world.
 #[derive(Debug, Serialize, utoipa::ToSchema)]
@@ -114,66 +82,69 @@ fn base_url(headers: &HeaderMap) -> String {
     format!("{proto}://{host}")
 }
 
-/// `GET /worlds`.
+/// Every world.
+#[utoipa::path(get, path = "/worlds", tag = "meta",
+    responses((status = 200, description = "Worlds", body = Vec<WorldInfo>)))]
 pub async fn worlds(State(state): State<AppState>, headers: HeaderMap) -> Json<Vec<WorldInfo>> {
     let base = base_url(&headers);
     Json(state.worlds.values().map(|w| info(w, &base)).collect())
 }
 
-/// `GET /worlds/{world}`.
+/// One world.
+#[utoipa::path(get, path = "/worlds/{world}", tag = "meta",
+    params(("world" = String, Path, description = "World name")),
+    responses(
+        (status = 200, description = "The world", body = WorldInfo),
+        (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
+    ))]
 pub async fn world(
     State(state): State<AppState>,
     Path(name): Path<String>,
     headers: HeaderMap,
 ) -> Result<Json<WorldInfo>, ServerError> {
-    let w = state
-        .worlds
-        .get(&name)
-        .ok_or_else(|| ServerError::NotFound(format!("unknown world `{name}`")))?;
-    Ok(Json(info(w, &base_url(&headers))))
+    let w = state.world(&name)?;
+    Ok(Json(info(&w, &base_url(&headers))))
 }
 
-/// `GET /tiles/{world}/{layer}.json`: TileJSON 3.0.0.
+/// TileJSON 3.0.0 of a layer.
+#[utoipa::path(
+    get,
+    path = "/tiles/{world}/{file}",
+    tag = "tiles",
+    params(
+        ("world" = String, Path, description = "World name"),
+        ("file" = String, Path, description = "`{layer}.json`")
+    ),
+    responses(
+        (status = 200, description = "TileJSON", body = TileJson),
+        (status = 404, description = "Unknown world or layer", body = Problem, content_type = "application/problem+json")
+    )
+)]
 pub async fn tilejson(
     State(state): State<AppState>,
     Path((name, file)): Path<(String, String)>,
     headers: HeaderMap,
 ) -> Result<Json<TileJson>, ServerError> {
-    let w = state
-        .worlds
-        .get(&name)
-        .ok_or_else(|| ServerError::NotFound(format!("unknown world `{name}`")))?;
-    let layer = file
-        .strip_suffix(".json")
-        .filter(|l| LAYERS.contains(l))
-        .ok_or_else(|| ServerError::NotFound(format!("no TileJSON `{file}`")))?;
-    let base = format!("{}/tiles", base_url(&headers));
-    let mut tj = TileJson::new(
-        &base,
-        w.name(),
-        layer,
-        "png",
-        w.min_zoom(),
-        w.max_zoom(),
-        w.bounds(),
-    )
-    .with_attribution(w.attribution());
-    tj.center = w.center();
-    tj.name = format!("{} {layer}", w.title());
-    if layer == "elevation" {
-        tj = tj
-            .with_encoding(TerrainEncoding::Terrarium)
-            .with_tile_size(256);
-    }
-    if let Some(d) = layer_description(w, layer) {
-        tj = tj.with_description(d).with_tile_size(256);
-    }
-    Ok(Json(tj))
+    let w = state.world(&name)?;
+    file.strip_suffix(".json")
+        .and_then(|layer| tilejson_of(&w, &base_url(&headers), layer))
+        .map(Json)
+        .ok_or_else(|| ServerError::NotFound(format!("no TileJSON `{file}`")))
 }
 
-/// `GET /styles/{world}.json`: a MapLibre style (version 8) with the world's raster-dem as 3D
-/// terrain and hillshade, and the colour map, vegetation overlay and drainage overlay as raster
-/// layers switchable through `layout.visibility` (colour and drainage visible, vegetation not).
+/// MapLibre style (version 8) of a world: its raster-dem as terrain and hillshade, the colour
+/// map, vegetation overlay and drainage overlay as raster layers switchable with
+/// `layout.visibility`.
+#[utoipa::path(
+    get,
+    path = "/styles/{file}",
+    tag = "tiles",
+    params(("file" = String, Path, description = "`{world}.json`")),
+    responses(
+        (status = 200, description = "MapLibre style", body = Object),
+        (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
+    )
+)]
 pub async fn style(
     State(state): State<AppState>,
     Path(file): Path<String>,
@@ -182,67 +153,13 @@ pub async fn style(
     let name = file
         .strip_suffix(".json")
         .ok_or_else(|| ServerError::NotFound(format!("no style `{file}`")))?;
-    let w = state
-        .worlds
-        .get(name)
-        .ok_or_else(|| ServerError::NotFound(format!("unknown world `{name}`")))?;
-    Ok(Json(style_json(w, &base_url(&headers))))
+    let w = state.world(name)?;
+    Ok(Json(style_json(&w, &base_url(&headers))))
 }
 
-/// The MapLibre style of world `w` served at `base`.
-pub fn style_json(w: &World, base: &str) -> serde_json::Value {
-    let n = w.name();
-    let tiles =
-        |layer: &str, ext: &str| format!("{base}/tiles/{n}/{layer}/{{z}}/{{x}}/{{y}}.{ext}");
-    let raster = |url: String| {
-        serde_json::json!({
-            "type": "raster",
-            "tiles": [url],
-            "tileSize": 256,
-            "minzoom": w.min_zoom(),
-            "maxzoom": w.max_zoom(),
-            "bounds": w.bounds(),
-            "attribution": w.attribution(),
-        })
-    };
-    let dem = serde_json::json!({
-        "type": "raster-dem",
-        "url": format!("{base}/tiles/{n}/elevation.json"),
-        "tileSize": 256,
-        "encoding": "terrarium",
-    });
-    let c = w.center();
-    serde_json::json!({
-        "version": 8,
-        "name": w.title(),
-        "center": [c[0], c[1]],
-        "zoom": c[2],
-        "pitch": 45,
-        "sources": {
-            "terrain": dem.clone(),
-            "hillshade": dem,
-            "color": raster(tiles("color", "png")),
-            "vegetation": raster(format!("{}?style=overlay", tiles("vegetation", "png"))),
-            "drainage": raster(tiles("drainage", "png")),
-        },
-        "terrain": { "source": "terrain", "exaggeration": 1.0 },
-        "layers": [
-            { "id": "background", "type": "background",
-              "paint": { "background-color": "#d8d4c8" } },
-            { "id": "color", "type": "raster", "source": "color",
-              "layout": { "visibility": "visible" } },
-            { "id": "vegetation", "type": "raster", "source": "vegetation",
-              "layout": { "visibility": "none" }, "paint": { "raster-opacity": 0.8 } },
-            { "id": "hillshade", "type": "hillshade", "source": "hillshade",
-              "layout": { "visibility": "visible" },
-              "paint": { "hillshade-exaggeration": 0.35 } },
-            { "id": "drainage", "type": "raster", "source": "drainage",
-              "layout": { "visibility": "visible" } },
-        ],
-    })
-}
-
-/// `GET /healthz`.
+/// Liveness.
+#[utoipa::path(get, path = "/healthz", tag = "meta",
+    responses((status = 200, description = "`ok`", body = String, content_type = "text/plain")))]
 pub async fn healthz() -> Response {
     let mut resp = "ok".into_response();
     resp.headers_mut()
@@ -250,7 +167,9 @@ pub async fn healthz() -> Response {
     resp
 }
 
-/// `GET /metrics`: Prometheus text.
+/// Prometheus metrics.
+#[utoipa::path(get, path = "/metrics", tag = "meta",
+    responses((status = 200, description = "Prometheus text exposition", body = String, content_type = "text/plain")))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
     let state2 = state.clone();
     let text = tokio::task::spawn_blocking(move || {

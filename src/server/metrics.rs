@@ -3,11 +3,10 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::sync::atomic::Ordering;
 use std::sync::Mutex;
 use std::time::Duration;
 
-use crate::tiles::World;
+use terrasynth_tiles::World;
 
 /// Upper bounds of the latency histogram buckets, seconds.
 pub const BUCKETS: [f64; 12] = [
@@ -105,25 +104,25 @@ impl Metrics {
                 "terrasynth_cache_hits_total",
                 "counter",
                 "Level tiles served from the cache.",
-                |w| w.stats().cache_hits.load(Ordering::Relaxed) as f64,
+                |w| w.stats().cache_hits as f64,
             ),
             (
                 "terrasynth_cache_misses_total",
                 "counter",
                 "Level tiles computed on a cache miss.",
-                |w| w.stats().cache_misses.load(Ordering::Relaxed) as f64,
+                |w| w.stats().cache_misses as f64,
             ),
             (
                 "terrasynth_tiles_synthesized_total",
                 "counter",
                 "Level tiles produced by amplification.",
-                |w| w.stats().tiles_synthesized.load(Ordering::Relaxed) as f64,
+                |w| w.stats().tiles_synthesized as f64,
             ),
             (
                 "terrasynth_synthesis_seconds_total",
                 "counter",
                 "Seconds spent computing level tiles.",
-                |w| w.stats().synthesis_micros.load(Ordering::Relaxed) as f64 / 1e6,
+                |w| w.stats().synthesis_seconds,
             ),
             (
                 "terrasynth_cache_bytes",

@@ -10,8 +10,8 @@ use axum::extract::{Path, State};
 use axum::http::{header, HeaderValue};
 use axum::response::{IntoResponse, Response};
 
-use super::error::ServerError;
-use super::AppState;
+use super::error::{Problem, ServerError};
+use super::state::AppState;
 
 /// The page.
 const INDEX_HTML: &str = include_str!("web/index.html");
@@ -28,17 +28,23 @@ fn text(body: &'static str, content_type: &'static str) -> Response {
     resp
 }
 
-/// `GET /`: the web map.
+/// The web map page.
+#[utoipa::path(get, path = "/", tag = "web", operation_id = "web_index",
+    responses((status = 200, description = "HTML page", body = String, content_type = "text/html")))]
 pub async fn index() -> Response {
     text(INDEX_HTML, "text/html; charset=utf-8")
 }
 
-/// `GET /app.js`.
+/// The web map's script.
+#[utoipa::path(get, path = "/app.js", tag = "web", operation_id = "web_js",
+    responses((status = 200, description = "JavaScript", body = String, content_type = "text/javascript")))]
 pub async fn app_js() -> Response {
     text(APP_JS, "text/javascript; charset=utf-8")
 }
 
-/// `GET /app.css`.
+/// The web map's style sheet.
+#[utoipa::path(get, path = "/app.css", tag = "web", operation_id = "web_css",
+    responses((status = 200, description = "CSS", body = String, content_type = "text/css")))]
 pub async fn app_css() -> Response {
     text(APP_CSS, "text/css; charset=utf-8")
 }
@@ -63,7 +69,13 @@ pub fn vendor_content_type(name: &str) -> Option<&'static str> {
     }
 }
 
-/// `GET /vendor/maplibre-gl/{file}`: a file of the MapLibre GL JS distribution.
+/// A file of the MapLibre GL JS distribution (from `web_vendor_dir`).
+#[utoipa::path(get, path = "/vendor/maplibre-gl/{file}", tag = "web", operation_id = "web_vendor",
+    params(("file" = String, Path, description = "A plain `.js`, `.mjs`, `.css` or `.map` file name")),
+    responses(
+        (status = 200, description = "The file", content(("text/javascript"), ("text/css"), ("application/json"))),
+        (status = 404, description = "Not a served name, or not installed", body = Problem, content_type = "application/problem+json")
+    ))]
 pub async fn vendor(
     State(state): State<AppState>,
     Path(file): Path<String>,

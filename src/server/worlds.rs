@@ -1,6 +1,7 @@
-//! Loading the configured worlds: resolve each base raster, find the world's dictionary in the
-//! store (by an alias derived from its build settings) or build it there on first start, with a
-//! log line per stage, then assemble the tile pyramid.
+//! Worlds: loading the configured worlds (resolve each base raster, find the world's dictionary
+//! in the store by an alias derived from its build settings or build it there on first start,
+//! with a log line per stage), assembling worlds the admin API created from their resolved
+//! definitions, and computing their whole-world landscape layers in the background.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -9,27 +10,33 @@ use std::time::Instant;
 
 use sha2::{Digest, Sha256};
 
-use super::error::ServerError;
+use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
+use terrasynth_core::dictionary::{Dictionary, ExemplarOptions, Learning};
+use terrasynth_core::landscape::exemplar_vegetation;
+use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
+use terrasynth_store::{ResolvedWorld, Store};
+use terrasynth_tiles::{TileError, World, WorldParts};
+
+use super::error::StartupError;
 use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_TIENSHAN};
-use crate::dictionary::build::{build, BuildOptions, Exemplar};
-use crate::dictionary::derive::derived_layers;
-use crate::dictionary::{Dictionary, Learning};
-use crate::landscape::exemplar_vegetation;
-use crate::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
-use crate::store::Store;
-use crate::tiles::{World, WorldParts};
 
 /// The worlds a server serves, by name.
 pub type Worlds = BTreeMap<String, Arc<World>>;
 
-fn load_raster(spec: &str, dir: &Path) -> Result<Grid, ServerError> {
+/// A world-loading error of world `world`.
+fn world_error(world: &WorldConfig) -> impl Fn(String) -> StartupError + '_ {
+    move |message| StartupError::World {
+        world: world.name.clone(),
+        message,
+    }
+}
+
+fn load_raster(spec: &str, dir: &Path) -> Result<Grid, String> {
     if spec == EMBEDDED_TIENSHAN {
-        return embedded::tienshan()
-            .map_err(|e| ServerError::Internal(format!("embedded raster: {e}")));
+        return embedded::tienshan().map_err(|e| format!("embedded raster: {e}"));
     }
     let path = dir.join(spec);
-    read_geotiff_file(&path, &ReadLimits::default())
-        .map_err(|e| ServerError::Internal(format!("{}: {e}", path.display())))
+    read_geotiff_file(&path, &ReadLimits::default()).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// A stable name for the dictionary a world's settings produce.
@@ -54,66 +61,63 @@ fn dictionary_alias(world: &WorldConfig) -> String {
     format!("world-{}-{hex}", world.name)
 }
 
-fn build_dictionary(
-    world: &WorldConfig,
-    cfg: &DictionaryConfig,
-) -> Result<Dictionary, ServerError> {
+fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dictionary, String> {
     for (species, rasters) in &cfg.vegetation_rasters {
         if !world.landscape.species.iter().any(|s| &s.name == species) {
-            return Err(ServerError::Internal(format!(
-                "vegetation raster for unknown species `{species}`"
-            )));
+            return Err(format!("vegetation raster for unknown species `{species}`"));
         }
         if rasters.len() != cfg.exemplars.len() {
-            return Err(ServerError::Internal(format!(
+            return Err(format!(
                 "species `{species}`: {} vegetation rasters for {} exemplars",
                 rasters.len(),
                 cfg.exemplars.len()
-            )));
+            ));
         }
     }
     let mut exemplars = Vec::new();
     for (e, spec) in cfg.exemplars.iter().enumerate() {
         let t = Instant::now();
         let grid = load_raster(spec, &world.dir)?;
-        let filled = grid
-            .filled()
-            .map_err(|e| ServerError::Internal(format!("exemplar {spec}: {e}")))?;
-        let cells = grid.georef.cell_sizes(grid.rows());
-        let mut layers = derived_layers(&filled, &cells);
-        layers.extend(exemplar_vegetation(&world.landscape, &filled, &cells));
-        // The exemplar's own vegetation rasters replace the derived layers.
-        for (name, values, _) in layers.iter_mut() {
-            let Some(path) = cfg.vegetation_rasters.get(name).and_then(|r| r.get(e)) else {
+        // The exemplar's own vegetation rasters replace the niche model's layers: read them
+        // first, so that the species hook below cannot fail.
+        let mut rasters = BTreeMap::new();
+        for (name, paths) in &cfg.vegetation_rasters {
+            let Some(path) = paths.get(e).filter(|p| !p.is_empty()) else {
                 continue;
             };
-            if path.is_empty() {
-                continue;
-            }
             let v = load_raster(path, &world.dir)?;
-            if v.data.dim() != filled.dim() {
-                return Err(ServerError::Internal(format!(
+            if v.data.dim() != grid.data.dim() {
+                return Err(format!(
                     "vegetation raster {path} is {:?}, exemplar {spec} is {:?}",
                     v.data.dim(),
-                    filled.dim()
-                )));
+                    grid.data.dim()
+                ));
             }
-            *values = v.data.mapv(|d| {
+            let density = v.data.mapv(|d| {
                 if d.is_finite() {
                     d.clamp(0.0, 1.0)
                 } else {
                     0.0
                 }
             });
+            rasters.insert(name.clone(), density);
         }
+        let options = ExemplarOptions {
+            derive: true,
+            ..ExemplarOptions::default()
+        };
+        let ex = Exemplar::from_grid(&grid, options, |filled, cells| {
+            let mut layers = exemplar_vegetation(&world.landscape, filled, cells);
+            for (name, values, _) in layers.iter_mut() {
+                if let Some(density) = rasters.remove(name) {
+                    *values = density;
+                }
+            }
+            layers
+        })
+        .map_err(|e| format!("exemplar {spec}: {e}"))?;
         tracing::info!(world = %world.name, exemplar = %spec, seconds = t.elapsed().as_secs_f64(), "dictionary: exemplar read and layers derived");
-        let valid = grid.valid.clone();
-        exemplars.push(Exemplar {
-            elevation: filled,
-            valid,
-            cell_m: cells.mean_cell(),
-            layers,
-        });
+        exemplars.push(ex);
     }
     let opts = BuildOptions {
         patch: cfg.patch,
@@ -130,7 +134,7 @@ fn build_dictionary(
             last = stage.to_string();
         }
     })
-    .map_err(|e| ServerError::Internal(format!("building the dictionary: {e}")))?;
+    .map_err(|e| format!("building the dictionary: {e}"))?;
     tracing::info!(world = %world.name, atoms = d.n_atoms, seconds = t.elapsed().as_secs_f64(), "dictionary: built");
     Ok(d)
 }
@@ -139,7 +143,7 @@ fn build_dictionary(
 fn world_dictionary(
     store: &Store,
     world: &WorldConfig,
-) -> Result<(Arc<Dictionary>, String), ServerError> {
+) -> Result<(Arc<Dictionary>, String), StartupError> {
     let alias = dictionary_alias(world);
     if let Some(id) = store.alias(&alias)? {
         match store.get_dictionary(&id) {
@@ -156,22 +160,21 @@ fn world_dictionary(
         }
     }
     tracing::info!(world = %world.name, "dictionary: not in the store; building it");
-    let d = build_dictionary(world, &world.dictionary)?;
+    let d = build_dictionary(world, &world.dictionary).map_err(world_error(world))?;
     let id = store.put_dictionary(&d)?;
     store.set_alias(&alias, &id)?;
     tracing::info!(world = %world.name, id = %id, "dictionary: stored");
     Ok((Arc::new(d), id))
 }
 
-/// Loads every configured world.
-pub fn load_worlds(config: &Config) -> Result<Worlds, ServerError> {
-    let store = Store::open(&config.server.store_dir)?;
+/// Loads every configured world, building missing dictionaries into `store`.
+pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupError> {
     let mut worlds = Worlds::new();
     for wc in &config.worlds {
         let t = Instant::now();
-        let base = load_raster(&wc.base, &wc.dir)?;
+        let base = load_raster(&wc.base, &wc.dir).map_err(world_error(wc))?;
         tracing::info!(world = %wc.name, rows = base.rows(), cols = base.cols(), "world: base loaded");
-        let (dictionary, dictionary_id) = world_dictionary(&store, wc)?;
+        let (dictionary, dictionary_id) = world_dictionary(store, wc)?;
         let world = World::new(WorldParts {
             name: wc.name.clone(),
             title: if wc.title.is_empty() {
@@ -189,11 +192,32 @@ pub fn load_worlds(config: &Config) -> Result<Worlds, ServerError> {
             weights: wc.weights.clone(),
             cache_bytes: config.server.level_cache_bytes(config.worlds.len()),
             landscape: wc.landscape.clone(),
-        })?;
+        })
+        .map_err(|e| world_error(wc)(e.to_string()))?;
         tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
         worlds.insert(wc.name.clone(), Arc::new(world));
     }
     Ok(worlds)
+}
+
+/// The world a resolved admin-API definition describes, with a cache share of `cache_bytes`
+/// (CPU-bound: call it off the runtime).
+pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, TileError> {
+    let def = resolved.definition;
+    World::new(WorldParts {
+        title: def.name.clone(),
+        attribution: String::new(),
+        base: resolved.base,
+        z_base: None,
+        max_zoom: def.max_zoom,
+        fill_m: 0.0,
+        dictionary: resolved.dictionary,
+        dictionary_id: resolved.dictionary_id,
+        weights: def.match_weights(),
+        cache_bytes,
+        landscape: resolved.landscape,
+        name: def.name,
+    })
 }
 
 /// Computes the whole-world landscape layers of `worlds` one after the other on a background
@@ -228,8 +252,8 @@ pub fn prepare_landscapes(worlds: Vec<Arc<World>>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::{write_geotiff_file, Georef};
     use ndarray::Array2;
+    use terrasynth_core::raster::{write_geotiff_file, Georef};
 
     /// A world whose one exemplar is a 96² hilly GeoTIFF in a temporary directory, with the
     /// given `[dictionary.vegetation_rasters]` lines.

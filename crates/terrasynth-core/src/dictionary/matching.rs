@@ -1,0 +1,562 @@
+//! Matching a low-resolution input patch `P` against the atoms of a dictionary:
+//! `g(P, D_i) = Σ_j ω_j g_j(P_j, D_i^j)` with `Σ ω_j = 1` (DESIGN.md, method 1).
+//!
+//! Terms:
+//! - elevation, orientation-preserving: `(1 + P_h · D_h,i) / 2` on centred unit-norm patches;
+//! - altitude and slope: `exp(−x² / σ²)` of the difference of mean altitude (mean slope), with
+//!   `σ = max_i |P − D_i| / (2 √ln 2)` computed per query;
+//! - continuous extra layers (drainage, irradiance...): `(1 + P · D) / 2` on centred unit-norm
+//!   patches;
+//! - class layers: the mean over pixels of the dot product of unit-norm class-probability vectors.
+//!
+//! [`best_match_naive`] is the reference: a full scan scoring every atom with [`score_atom`].
+//! [`Matcher::best_match`] returns exactly the same atom (ties → lowest index): it computes every
+//! elevation dot product with the atoms stored dimension-major, so the inner loop runs across atoms
+//! and vectorises without changing the per-atom summation order, then prunes atoms whose upper
+//! bound cannot beat the best full score, and scores the rest with the same [`score_atom`].
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::atoms::{Dictionary, LayerKind};
+
+/// Slack added to the pruning bound so that float rounding of the full score can never make a
+/// pruned atom the true argmax.
+const PRUNE_SLACK: f32 = 1e-4;
+
+/// Matching weights `ω_j`. They are normalised to sum 1 before use; a weight of 0 disables a
+/// term. Layer weights refer to extra dictionary layers by name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MatchWeights {
+    /// Weight of the orientation-preserving elevation term.
+    pub elevation: f32,
+    /// Weight of the mean-altitude kernel.
+    pub altitude: f32,
+    /// Weight of the mean-slope kernel.
+    pub slope: f32,
+    /// Weights of extra layers by name (continuous layers, or class groups by group name).
+    pub layers: Vec<(String, f32)>,
+}
+
+impl Default for MatchWeights {
+    fn default() -> Self {
+        MatchWeights {
+            elevation: 0.8,
+            altitude: 0.1,
+            slope: 0.1,
+            layers: Vec::new(),
+        }
+    }
+}
+
+/// Errors of matching set-up.
+#[derive(Debug, Clone, thiserror::Error, PartialEq, Eq)]
+pub enum MatchError {
+    /// A weight is negative or not finite, or all weights are zero.
+    #[error("invalid matching weights: {0}")]
+    InvalidWeights(String),
+    /// A weight names a layer the dictionary does not have.
+    #[error("matching weight names unknown layer `{0}`")]
+    UnknownLayer(String),
+    /// A query does not have the length the dictionary expects.
+    #[error("query patch has {got} values, the dictionary expects {want}")]
+    QueryShape {
+        /// Values given.
+        got: usize,
+        /// Values expected.
+        want: usize,
+    },
+}
+
+/// A matching term on extra layers, resolved against a dictionary.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LayerTerm {
+    /// A continuous layer at dictionary index `layer`.
+    Continuous {
+        /// Index into `Dictionary::layers`.
+        layer: usize,
+        /// Normalised weight.
+        weight: f32,
+    },
+    /// A class group made of the dictionary layers `layers`.
+    Class {
+        /// Indices into `Dictionary::layers`, in dictionary order.
+        layers: Vec<usize>,
+        /// Normalised weight.
+        weight: f32,
+    },
+}
+
+/// Weights resolved against one dictionary and normalised to sum 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResolvedWeights {
+    /// Elevation term weight.
+    pub elevation: f32,
+    /// Altitude kernel weight.
+    pub altitude: f32,
+    /// Slope kernel weight.
+    pub slope: f32,
+    /// Extra-layer terms.
+    pub layers: Vec<LayerTerm>,
+}
+
+impl ResolvedWeights {
+    /// Resolves `w` against `dict`: checks values, looks up layer names (a name may be a
+    /// continuous layer or a class group), normalises the sum to 1.
+    pub fn resolve(w: &MatchWeights, dict: &Dictionary) -> Result<Self, MatchError> {
+        let all = [w.elevation, w.altitude, w.slope]
+            .into_iter()
+            .chain(w.layers.iter().map(|(_, v)| *v));
+        let mut total = 0.0f32;
+        for v in all {
+            if !v.is_finite() || v < 0.0 {
+                return Err(MatchError::InvalidWeights(format!(
+                    "weight {v} is negative or not finite"
+                )));
+            }
+            total += v;
+        }
+        if total <= 0.0 {
+            return Err(MatchError::InvalidWeights("all weights are zero".into()));
+        }
+        let mut layers = Vec::new();
+        for (name, v) in &w.layers {
+            if *v == 0.0 {
+                continue;
+            }
+            let weight = v / total;
+            if let Some(i) = dict.layer_index(name) {
+                if dict.layers[i].kind == LayerKind::Continuous {
+                    layers.push(LayerTerm::Continuous { layer: i, weight });
+                    continue;
+                }
+            }
+            let members: Vec<usize> = dict
+                .layers
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| matches!(&l.kind, LayerKind::Class { group } if group == name))
+                .map(|(i, _)| i)
+                .collect();
+            if members.is_empty() {
+                return Err(MatchError::UnknownLayer(name.clone()));
+            }
+            layers.push(LayerTerm::Class {
+                layers: members,
+                weight,
+            });
+        }
+        Ok(ResolvedWeights {
+            elevation: w.elevation / total,
+            altitude: w.altitude / total,
+            slope: w.slope / total,
+            layers,
+        })
+    }
+
+    /// Sum of the weights of every term other than elevation: the most they can add to a score.
+    fn rest(&self) -> f32 {
+        self.altitude
+            + self.slope
+            + self
+                .layers
+                .iter()
+                .map(|t| match t {
+                    LayerTerm::Continuous { weight, .. } | LayerTerm::Class { weight, .. } => {
+                        *weight
+                    }
+                })
+                .sum::<f32>()
+    }
+}
+
+/// A low-resolution input patch prepared for matching.
+#[derive(Clone, Debug, Default)]
+pub struct Query {
+    /// Centred, unit-norm elevation `P_h` (`lo²` values; all zero for a flat patch).
+    pub elevation: Vec<f32>,
+    /// Mean altitude `P_a`, metres.
+    pub mean_alt: f32,
+    /// Mean slope, m/m.
+    pub mean_slope: f32,
+    /// Per dictionary layer: the input's patch of that layer, prepared for its term (centred unit
+    /// norm for continuous layers, raw probabilities for class layers), or empty when the input
+    /// does not have the layer (the term then scores 0.5 for continuous, 0 for class).
+    pub layers: Vec<Vec<f32>>,
+}
+
+/// The per-query kernel widths shared by every atom.
+#[derive(Clone, Copy, Debug)]
+struct Sigmas {
+    inv_alt2: f32,
+    inv_slope2: f32,
+}
+
+/// `σ = max_i |P − D_i| / (2 √ln 2)`, returned as `1/σ²` (0 when σ = 0: the kernel is then 1).
+fn inv_sigma2(p: f32, min: f32, max: f32) -> f32 {
+    let m = (p - min).abs().max((p - max).abs());
+    let sigma = m / (2.0 * std::f32::consts::LN_2.sqrt());
+    if sigma > 0.0 {
+        1.0 / (sigma * sigma)
+    } else {
+        0.0
+    }
+}
+
+fn min_max(v: &[f32]) -> (f32, f32) {
+    v.iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        })
+}
+
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let mut s = 0.0f32;
+    for (x, y) in a.iter().zip(b) {
+        s += x * y;
+    }
+    s
+}
+
+/// Centres `x` and scales it to unit norm (all zeros when constant). Used on continuous layers of
+/// both queries and atoms.
+pub fn unit_centred(x: &[f32]) -> Vec<f32> {
+    let mut out = vec![0.0; x.len()];
+    super::features::centre_normalise(x, &mut out);
+    out
+}
+
+/// Mean over pixels of the dot product of unit-norm class vectors; `p` and `d` hold the group's
+/// layers one after another (`k × n` values each).
+fn class_similarity(p: &[f32], d: &[f32], k: usize, n: usize) -> f32 {
+    if n == 0 || k == 0 {
+        return 0.0;
+    }
+    let mut total = 0.0f32;
+    for px in 0..n {
+        let (mut pp, mut dd, mut pd) = (0.0f32, 0.0f32, 0.0f32);
+        for c in 0..k {
+            let a = p[c * n + px];
+            let b = d[c * n + px];
+            pp += a * a;
+            dd += b * b;
+            pd += a * b;
+        }
+        let den = (pp * dd).sqrt();
+        if den > 0.0 {
+            total += pd / den;
+        }
+    }
+    total / n as f32
+}
+
+/// Atom data prepared once per dictionary for the layer terms.
+#[derive(Clone, Debug)]
+struct PreparedLayers {
+    /// Per dictionary layer, per atom: centred unit-norm low patch (continuous layers) or raw
+    /// (class layers), `n × lo²` each.
+    atoms: Vec<Vec<f32>>,
+}
+
+impl PreparedLayers {
+    fn new(dict: &Dictionary) -> Self {
+        let lo2 = dict.lo_patch() * dict.lo_patch();
+        let atoms = (0..dict.layers.len())
+            .map(|l| {
+                let mut all = Vec::with_capacity(dict.n_atoms * lo2);
+                for i in 0..dict.n_atoms {
+                    let raw = dict.lo_layer(i, l);
+                    match dict.layers[l].kind {
+                        LayerKind::Continuous => all.extend(unit_centred(raw)),
+                        LayerKind::Class { .. } => all.extend_from_slice(raw),
+                    }
+                }
+                all
+            })
+            .collect();
+        PreparedLayers { atoms }
+    }
+
+    fn atom(&self, layer: usize, i: usize, lo2: usize) -> &[f32] {
+        &self.atoms[layer][i * lo2..(i + 1) * lo2]
+    }
+}
+
+/// Everything of the score of atom `i` except the elevation dot product, which the caller passes
+/// in `elev_dot`. Both the naive scan and the fast matcher call this, so their scores agree to
+/// the bit.
+#[allow(clippy::too_many_arguments)]
+fn combine(
+    w: &ResolvedWeights,
+    dict: &Dictionary,
+    prepared: &PreparedLayers,
+    q: &Query,
+    s: Sigmas,
+    i: usize,
+    elev_dot: f32,
+    scratch: &mut Vec<f32>,
+) -> f32 {
+    let lo2 = dict.lo_patch() * dict.lo_patch();
+    let mut score = w.elevation * (0.5 * (1.0 + elev_dot));
+    if w.altitude > 0.0 {
+        let d = q.mean_alt - dict.mean_alt[i];
+        score += w.altitude * (-(d * d) * s.inv_alt2).exp();
+    }
+    if w.slope > 0.0 {
+        let d = q.mean_slope - dict.mean_slope[i];
+        score += w.slope * (-(d * d) * s.inv_slope2).exp();
+    }
+    for term in &w.layers {
+        match term {
+            LayerTerm::Continuous { layer, weight } => {
+                let p = q.layers.get(*layer).map_or(&[][..], |v| v.as_slice());
+                let g = if p.len() == lo2 {
+                    0.5 * (1.0 + dot(p, prepared.atom(*layer, i, lo2)))
+                } else {
+                    0.5
+                };
+                score += weight * g;
+            }
+            LayerTerm::Class { layers, weight } => {
+                let k = layers.len();
+                let have_all = layers
+                    .iter()
+                    .all(|l| q.layers.get(*l).is_some_and(|v| v.len() == lo2));
+                if !have_all {
+                    continue;
+                }
+                scratch.clear();
+                let mut p = Vec::with_capacity(k * lo2);
+                for l in layers {
+                    p.extend_from_slice(&q.layers[*l]);
+                    scratch.extend_from_slice(prepared.atom(*l, i, lo2));
+                }
+                score += weight * class_similarity(&p, scratch, k, lo2);
+            }
+        }
+    }
+    score
+}
+
+/// Prepared dictionary for fast exact matching.
+#[derive(Clone, Debug)]
+pub struct Matcher {
+    dict: Arc<Dictionary>,
+    weights: ResolvedWeights,
+    prepared: PreparedLayers,
+    /// Low elevation atoms transposed: `lo² × n_pad`, dimension-major, atoms padded with zeros to
+    /// a multiple of [`ATOM_BLOCK`].
+    lo_t: Vec<f32>,
+    /// `n` rounded up to a multiple of [`ATOM_BLOCK`].
+    n_pad: usize,
+    /// Whether the CPU runs the AVX2 build of the dot-product kernel.
+    avx2: bool,
+    alt_range: (f32, f32),
+    slope_range: (f32, f32),
+}
+
+/// Atoms per block of the dot-product kernel: the block's accumulators stay in registers.
+pub const ATOM_BLOCK: usize = 32;
+
+/// `dots[i] = Σ_d q[d]·lo_t[d·n_pad + i]` for every atom, summed in increasing `d` — exactly the
+/// order of the naive per-atom loop, so the results are bit-identical to it. Blocks of
+/// [`ATOM_BLOCK`] atoms keep their accumulators in registers while `d` runs; the compiler
+/// vectorises across atoms without reassociating any sum.
+#[inline(always)]
+fn dots_blocked(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
+    for (b, out) in dots.chunks_exact_mut(ATOM_BLOCK).enumerate() {
+        let mut acc = [0.0f32; ATOM_BLOCK];
+        for (d, &p) in q.iter().enumerate() {
+            let start = d * n_pad + b * ATOM_BLOCK;
+            let row = &lo_t[start..start + ATOM_BLOCK];
+            for k in 0..ATOM_BLOCK {
+                acc[k] += p * row[k];
+            }
+        }
+        out.copy_from_slice(&acc);
+    }
+}
+
+/// The same kernel compiled for AVX2: wider vectors, the same IEEE multiplications and additions
+/// in the same order (no fused multiply-add), hence the same bits as the baseline build.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn dots_avx2(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
+    dots_blocked(q, lo_t, n_pad, dots);
+}
+
+#[cfg(target_arch = "x86_64")]
+fn avx2_available() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn avx2_available() -> bool {
+    false
+}
+
+fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], avx2: bool) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` is true only when the CPU reports AVX2 support.
+        unsafe { dots_avx2(q, lo_t, n_pad, dots) };
+        return;
+    }
+    let _ = avx2;
+    dots_blocked(q, lo_t, n_pad, dots);
+}
+
+/// Scratch buffers reused across queries so that matching does not allocate.
+#[derive(Clone, Debug, Default)]
+pub struct MatchScratch {
+    dots: Vec<f32>,
+    class: Vec<f32>,
+}
+
+impl Matcher {
+    /// Prepares `dict` for matching with `weights`.
+    pub fn new(dict: Arc<Dictionary>, weights: &MatchWeights) -> Result<Self, MatchError> {
+        let weights = ResolvedWeights::resolve(weights, &dict)?;
+        let lo2 = dict.lo_patch() * dict.lo_patch();
+        let n = dict.n_atoms;
+        let n_pad = n.div_ceil(ATOM_BLOCK) * ATOM_BLOCK;
+        let mut lo_t = vec![0.0f32; lo2 * n_pad];
+        for i in 0..n {
+            for (d, &v) in dict.lo_atom(i).iter().enumerate() {
+                lo_t[d * n_pad + i] = v;
+            }
+        }
+        Ok(Matcher {
+            prepared: PreparedLayers::new(&dict),
+            alt_range: min_max(&dict.mean_alt),
+            slope_range: min_max(&dict.mean_slope),
+            dict,
+            weights,
+            lo_t,
+            n_pad,
+            avx2: avx2_available(),
+        })
+    }
+
+    /// The dictionary being matched against.
+    pub fn dictionary(&self) -> &Dictionary {
+        &self.dict
+    }
+
+    /// The resolved, normalised weights.
+    pub fn weights(&self) -> &ResolvedWeights {
+        &self.weights
+    }
+
+    fn sigmas(&self, q: &Query) -> Sigmas {
+        Sigmas {
+            inv_alt2: inv_sigma2(q.mean_alt, self.alt_range.0, self.alt_range.1),
+            inv_slope2: inv_sigma2(q.mean_slope, self.slope_range.0, self.slope_range.1),
+        }
+    }
+
+    /// Checks the shape of a query.
+    pub fn check_query(&self, q: &Query) -> Result<(), MatchError> {
+        let want = self.dict.lo_patch() * self.dict.lo_patch();
+        if q.elevation.len() != want {
+            return Err(MatchError::QueryShape {
+                got: q.elevation.len(),
+                want,
+            });
+        }
+        Ok(())
+    }
+
+    /// Index of the best atom for `q` and its elevation dot product `P_h · D_h,k`.
+    /// Identical to [`best_match_naive`]. The query must have the right shape
+    /// ([`Matcher::check_query`]); a wrong-length elevation is treated as zero-padded/truncated.
+    pub fn best_match(&self, q: &Query, scratch: &mut MatchScratch) -> (usize, f32) {
+        let n = self.dict.n_atoms;
+        let dots = &mut scratch.dots;
+        dots.clear();
+        dots.resize(self.n_pad, 0.0);
+        if q.elevation.len() * self.n_pad == self.lo_t.len() {
+            all_dots(&q.elevation, &self.lo_t, self.n_pad, dots, self.avx2);
+        }
+        dots.truncate(n);
+        let s = self.sigmas(q);
+        let w = &self.weights;
+        // The best elevation term alone gives a first full score; an atom can only beat it if its
+        // elevation term plus every other weight (each term ≤ 1) reaches it.
+        let mut best = 0usize;
+        for (i, &v) in dots.iter().enumerate() {
+            if v > dots[best] {
+                best = i;
+            }
+        }
+        let mut best_score = combine(
+            w,
+            &self.dict,
+            &self.prepared,
+            q,
+            s,
+            best,
+            dots[best],
+            &mut scratch.class,
+        );
+        let rest = w.rest() + PRUNE_SLACK;
+        let first = best;
+        for (i, &dot_i) in dots.iter().enumerate() {
+            if i == first {
+                continue;
+            }
+            let bound = w.elevation * (0.5 * (1.0 + dot_i)) + rest;
+            if bound < best_score {
+                continue;
+            }
+            let sc = combine(
+                w,
+                &self.dict,
+                &self.prepared,
+                q,
+                s,
+                i,
+                dot_i,
+                &mut scratch.class,
+            );
+            if sc > best_score || (sc == best_score && i < best) {
+                best_score = sc;
+                best = i;
+            }
+        }
+        (best, dots[best])
+    }
+
+    /// The full score of atom `i` for `q` (the reference formula).
+    pub fn score(&self, q: &Query, i: usize) -> f32 {
+        let elev_dot = dot(&q.elevation, self.dict.lo_atom(i));
+        combine(
+            &self.weights,
+            &self.dict,
+            &self.prepared,
+            q,
+            self.sigmas(q),
+            i,
+            elev_dot,
+            &mut Vec::new(),
+        )
+    }
+}
+
+/// Reference implementation: scores every atom with the plain formula and returns the first
+/// index of the maximum score, with its elevation dot product.
+pub fn best_match_naive(matcher: &Matcher, q: &Query) -> (usize, f32) {
+    let dict = matcher.dictionary();
+    let mut best = 0usize;
+    let mut best_score = f32::NEG_INFINITY;
+    for i in 0..dict.n_atoms {
+        let sc = matcher.score(q, i);
+        if sc > best_score {
+            best_score = sc;
+            best = i;
+        }
+    }
+    (best, dot(&q.elevation, dict.lo_atom(best)))
+}

@@ -1,0 +1,386 @@
+//! The landscape configuration of a world (`[landscape]` in its TOML file): vegetation species
+//! with their niches, the seeding simulation, the materials of the splat and colour maps, and the
+//! drainage overlay style. A world without a `[landscape]` section gets the default world's
+//! (parsed from the embedded `config/worlds/tienshan.toml`, so the defaults are configuration,
+//! not code constants).
+//!
+//! Parameters and their units: `elevation` metres, `slope` degrees, `northness` cos(aspect) in
+//! [−1, 1], `curvature` 1/m (negative Laplacian: > 0 on ridges), `wetness` log10 of the upstream
+//! area in m², vegetation densities 0–1 by species name.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::LandscapeError;
+
+/// A smooth trapezoid weight curve: 0 outside `[min, max]`, 1 on `[min + falloff, max − falloff]`,
+/// and a smoothstep `t²(3 − 2t)` on the two falloff bands (the falloff is capped at half the
+/// range, so a zero-width plateau is a smooth bump).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Trapezoid {
+    /// Lower end of the range (weight 0 at and below).
+    pub min: f32,
+    /// Upper end of the range (weight 0 at and above).
+    pub max: f32,
+    /// Width of each smooth band inside the range (0: a box).
+    #[serde(default)]
+    pub falloff: f32,
+}
+
+impl Trapezoid {
+    /// The weight of `x` (0 for NaN).
+    pub fn weight(&self, x: f32) -> f32 {
+        if !(x > self.min && x < self.max) {
+            // Outside, on the ends, or NaN. A box (no falloff) includes its ends.
+            if self.falloff <= 0.0 && x >= self.min && x <= self.max {
+                return 1.0;
+            }
+            return 0.0;
+        }
+        let f = self.falloff.min(0.5 * (self.max - self.min));
+        if f <= 0.0 {
+            return 1.0;
+        }
+        let t = ((x - self.min) / f).min((self.max - x) / f).min(1.0);
+        t * t * (3.0 - 2.0 * t)
+    }
+
+    fn check(&self, what: &str) -> Result<(), LandscapeError> {
+        let ok = self.min.is_finite()
+            && self.max.is_finite()
+            && self.falloff.is_finite()
+            && self.min <= self.max
+            && self.falloff >= 0.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(LandscapeError::Invalid(format!(
+                "{what}: range [{}, {}] with falloff {} must be finite with min ≤ max, falloff ≥ 0",
+                self.min, self.max, self.falloff
+            )))
+        }
+    }
+}
+
+/// One vegetation species (or cover type) and its niche: the product of the weight curves of
+/// the parameters it names (an absent parameter does not constrain).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Species {
+    /// Layer name (letters, digits, `_`, `-`); also the EXR channel name.
+    pub name: String,
+    /// Overlay colour `[r, g, b]`.
+    #[serde(default = "default_species_colour")]
+    pub colour: [u8; 3],
+    /// Altitude, metres.
+    #[serde(default)]
+    pub elevation: Option<Trapezoid>,
+    /// Slope, degrees.
+    #[serde(default)]
+    pub slope: Option<Trapezoid>,
+    /// Northness, −1..1.
+    #[serde(default)]
+    pub northness: Option<Trapezoid>,
+    /// Wetness, log10 of the upstream area in m².
+    #[serde(default)]
+    pub wetness: Option<Trapezoid>,
+}
+
+fn default_species_colour() -> [u8; 3] {
+    [40, 140, 60]
+}
+
+/// The seeding/survival simulation (method 4) that turns niche suitability into patchy
+/// densities: `density = suitability · (floor + (1 − floor) · cluster)`, where `cluster` is the
+/// local fraction of occupied cells after `iterations` rounds of seeding near occupied cells and
+/// survival, all drawn from hashes of global cell coordinates.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Clustering {
+    /// Seed of every draw.
+    pub seed: u64,
+    /// Seeding rounds.
+    pub iterations: u32,
+    /// Seed dispersal (and final smoothing) radius, cells.
+    pub radius: u32,
+    /// Share of the suitability kept whatever the clusters (0: fully patchy, 1: no patches).
+    pub floor: f32,
+}
+
+impl Default for Clustering {
+    fn default() -> Self {
+        Clustering {
+            seed: 1,
+            iterations: 4,
+            radius: 2,
+            floor: 0.5,
+        }
+    }
+}
+
+/// One material of the splat and colour maps: its weight is the product of the weight curves of
+/// the parameters it names, times `1 + spread · n` with `n` a deterministic value noise in
+/// [−1, 1] of wavelength `spread_scale_m` (so a weight is 0 wherever any of its ranges excludes
+/// the pixel).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Name.
+    pub name: String,
+    /// Colour `[r, g, b]` of the colour map.
+    pub colour: [u8; 3],
+    /// Altitude, metres.
+    #[serde(default)]
+    pub elevation: Option<Trapezoid>,
+    /// Slope, degrees.
+    #[serde(default)]
+    pub slope: Option<Trapezoid>,
+    /// Northness, −1..1.
+    #[serde(default)]
+    pub northness: Option<Trapezoid>,
+    /// Curvature, 1/m.
+    #[serde(default)]
+    pub curvature: Option<Trapezoid>,
+    /// Wetness, log10 m².
+    #[serde(default)]
+    pub wetness: Option<Trapezoid>,
+    /// Vegetation densities by species name.
+    #[serde(default)]
+    pub vegetation: BTreeMap<String, Trapezoid>,
+    /// Amplitude of the noise modulation, 0..1 (0: none).
+    #[serde(default)]
+    pub spread: f32,
+    /// Wavelength of the noise, metres (Web Mercator metres).
+    #[serde(default = "default_spread_scale")]
+    pub spread_scale_m: f32,
+}
+
+fn default_spread_scale() -> f32 {
+    2000.0
+}
+
+/// How the drainage PNG overlay is drawn: alpha rises linearly in log10 area from `png_min_m2`
+/// (transparent) to `png_max_m2` (opaque) in `colour`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DrainageStyle {
+    /// Upstream area (m²) below which the overlay is transparent.
+    pub png_min_m2: f64,
+    /// Upstream area (m²) at and above which it is opaque.
+    pub png_max_m2: f64,
+    /// River colour `[r, g, b]`.
+    pub colour: [u8; 3],
+}
+
+impl Default for DrainageStyle {
+    fn default() -> Self {
+        DrainageStyle {
+            png_min_m2: 1e6,
+            png_max_m2: 1e10,
+            colour: [30, 100, 230],
+        }
+    }
+}
+
+/// The `[landscape]` section of a world file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LandscapeConfig {
+    /// Vegetation species (at most 64).
+    pub species: Vec<Species>,
+    /// Seeding simulation.
+    pub clustering: Clustering,
+    /// Suitability at and above which synthesized densities are kept whole; below it they fade
+    /// smoothly to 0 at suitability 0 (the viability step on the served terrain, applied after
+    /// the niche has moved density among each parent pixel's children).
+    pub viability: f32,
+    /// Materials of the splat and colour maps (at least 1, at most 64), in splat order.
+    pub materials: Vec<Material>,
+    /// Material that takes a pixel no material's ranges admit (default: the first).
+    pub fallback_material: Option<String>,
+    /// Drainage overlay style.
+    pub drainage: DrainageStyle,
+}
+
+impl Default for LandscapeConfig {
+    fn default() -> Self {
+        LandscapeConfig {
+            species: Vec::new(),
+            clustering: Clustering::default(),
+            viability: 0.2,
+            materials: vec![Material {
+                name: "ground".into(),
+                colour: [150, 140, 120],
+                elevation: None,
+                slope: None,
+                northness: None,
+                curvature: None,
+                wetness: None,
+                vegetation: BTreeMap::new(),
+                spread: 0.0,
+                spread_scale_m: default_spread_scale(),
+            }],
+            fallback_material: None,
+            drainage: DrainageStyle::default(),
+        }
+    }
+}
+
+/// Only the `[landscape]` section of a world file.
+#[derive(Deserialize)]
+struct Section {
+    #[serde(default)]
+    landscape: Option<LandscapeConfig>,
+}
+
+impl LandscapeConfig {
+    /// The default world's landscape (the `[landscape]` section of the embedded
+    /// `config/worlds/tienshan.toml`); [`LandscapeConfig::default`] if it cannot be read.
+    pub fn tienshan() -> Self {
+        toml::from_str::<Section>(crate::assets::TIENSHAN_WORLD_TOML)
+            .ok()
+            .and_then(|s| s.landscape)
+            .unwrap_or_default()
+    }
+
+    /// Checks names, ranges and counts.
+    pub fn validate(&self) -> Result<(), LandscapeError> {
+        let bad = |m: String| Err(LandscapeError::Invalid(m));
+        if self.species.len() > 64 {
+            return bad(format!("{} species (at most 64)", self.species.len()));
+        }
+        if self.materials.is_empty() || self.materials.len() > 64 {
+            return bad(format!(
+                "{} materials (1 to 64 wanted)",
+                self.materials.len()
+            ));
+        }
+        if !(self.viability.is_finite() && (0.0..=1.0).contains(&self.viability)) {
+            return bad(format!("viability {} must lie in [0, 1]", self.viability));
+        }
+        let c = &self.clustering;
+        if !(c.floor.is_finite() && (0.0..=1.0).contains(&c.floor)) {
+            return bad(format!("clustering.floor {} must lie in [0, 1]", c.floor));
+        }
+        if c.iterations > 64 || c.radius > 32 {
+            return bad("clustering: at most 64 iterations and radius 32".into());
+        }
+        for (i, s) in self.species.iter().enumerate() {
+            if !crate::names::is_valid_name(&s.name)
+                || self.species[..i].iter().any(|o| o.name == s.name)
+            {
+                return bad(format!("species name `{}` is invalid or repeated", s.name));
+            }
+            for (k, t) in [
+                ("elevation", s.elevation),
+                ("slope", s.slope),
+                ("northness", s.northness),
+                ("wetness", s.wetness),
+            ] {
+                if let Some(t) = t {
+                    t.check(&format!("species {} {k}", s.name))?;
+                }
+            }
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            if !crate::names::is_valid_name(&m.name)
+                || self.materials[..i].iter().any(|o| o.name == m.name)
+            {
+                return bad(format!("material name `{}` is invalid or repeated", m.name));
+            }
+            for (k, t) in [
+                ("elevation", m.elevation),
+                ("slope", m.slope),
+                ("northness", m.northness),
+                ("curvature", m.curvature),
+                ("wetness", m.wetness),
+            ] {
+                if let Some(t) = t {
+                    t.check(&format!("material {} {k}", m.name))?;
+                }
+            }
+            for (sp, t) in &m.vegetation {
+                if !self.species.iter().any(|s| &s.name == sp) {
+                    return bad(format!("material {} names unknown species `{sp}`", m.name));
+                }
+                t.check(&format!("material {} vegetation {sp}", m.name))?;
+            }
+            if !(m.spread.is_finite() && (0.0..=1.0).contains(&m.spread)) {
+                return bad(format!("material {}: spread must lie in [0, 1]", m.name));
+            }
+            if !(m.spread_scale_m.is_finite() && m.spread_scale_m > 0.0) {
+                return bad(format!("material {}: spread_scale_m must be > 0", m.name));
+            }
+        }
+        if let Some(f) = &self.fallback_material {
+            if !self.materials.iter().any(|m| &m.name == f) {
+                return bad(format!("fallback_material `{f}` is not a material"));
+            }
+        }
+        let d = &self.drainage;
+        if !(d.png_min_m2 > 0.0 && d.png_max_m2 > d.png_min_m2 && d.png_max_m2.is_finite()) {
+            return bad("drainage: need 0 < png_min_m2 < png_max_m2".into());
+        }
+        Ok(())
+    }
+
+    /// Index of the fallback material.
+    pub fn fallback_index(&self) -> usize {
+        self.fallback_material
+            .as_ref()
+            .and_then(|f| self.materials.iter().position(|m| &m.name == f))
+            .unwrap_or(0)
+    }
+
+    /// Number of RGBA splat sets (`ceil(materials / 4)`).
+    pub fn splat_sets(&self) -> usize {
+        self.materials.len().div_ceil(4)
+    }
+
+    /// Species names in layer order.
+    pub fn species_names(&self) -> Vec<String> {
+        self.species.iter().map(|s| s.name.clone()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trapezoid_is_zero_outside_one_inside_and_smooth() {
+        let t = Trapezoid {
+            min: 0.0,
+            max: 10.0,
+            falloff: 2.0,
+        };
+        assert_eq!(t.weight(-1.0), 0.0);
+        assert_eq!(t.weight(0.0), 0.0);
+        assert_eq!(t.weight(10.0), 0.0);
+        assert_eq!(t.weight(11.0), 0.0);
+        assert_eq!(t.weight(f32::NAN), 0.0);
+        assert_eq!(t.weight(5.0), 1.0);
+        assert_eq!(t.weight(2.0), 1.0);
+        // Smoothstep at t = 1/2.
+        assert!((t.weight(1.0) - 0.5).abs() < 1e-6);
+        assert!((t.weight(9.0) - 0.5).abs() < 1e-6);
+        let b = Trapezoid {
+            min: 1.0,
+            max: 2.0,
+            falloff: 0.0,
+        };
+        assert_eq!(b.weight(1.0), 1.0);
+        assert_eq!(b.weight(0.99), 0.0);
+    }
+
+    #[test]
+    fn the_default_world_has_a_valid_landscape() {
+        let l = LandscapeConfig::tienshan();
+        l.validate().unwrap();
+        assert!(l.species.len() >= 3, "{:?}", l.species_names());
+        assert!(l.materials.len() >= 8);
+        LandscapeConfig::default().validate().unwrap();
+    }
+}

@@ -1,0 +1,614 @@
+//! Integration tests of `terrasynth_core::analysis`: optimised implementations against the naive
+//! references (property tests), hand-computed values, realism sanity checks and edge cases.
+
+use ndarray::Array2;
+use proptest::prelude::*;
+use terrasynth_core::analysis::{self, naive, Complex, D8_NONE, D8_OFFSETS, MFD_EXPONENT};
+use terrasynth_core::raster::CellSizes;
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------------------------
+
+/// A small deterministic LCG in [0, 1).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Plane `z = f(x_m, y_m)` with x east and y north (row 0 at the top, so y = −row·dy).
+fn plane(rows: usize, cols: usize, cell: f64, f: impl Fn(f64, f64) -> f64) -> Array2<f32> {
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        f(c as f64 * cell, -(r as f64) * cell) as f32
+    })
+}
+
+fn interior(rows: usize, cols: usize) -> impl Iterator<Item = (usize, usize)> {
+    (1..rows.saturating_sub(1)).flat_map(move |r| (1..cols.saturating_sub(1)).map(move |c| (r, c)))
+}
+
+fn has_lower_neighbour(z: &Array2<f32>, r: usize, c: usize) -> bool {
+    let (rows, cols) = z.dim();
+    D8_OFFSETS.iter().any(|&(dr, dc)| {
+        let (nr, nc) = (r as isize + dr, c as isize + dc);
+        if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+            return false;
+        }
+        let v = z[[nr as usize, nc as usize]];
+        v.is_nan() || v < z[[r, c]]
+    })
+}
+
+/// Sum of accumulation over the sinks (cells whose flow leaves the grid).
+fn sink_total(acc: &Array2<f64>, rcv: &Array2<u8>) -> f64 {
+    acc.iter()
+        .zip(rcv.iter())
+        .filter(|(_, &d)| d == D8_NONE)
+        .map(|(a, _)| *a)
+        .sum()
+}
+
+fn total_area(cs: &CellSizes, rows: usize, cols: usize) -> f64 {
+    (0..rows).map(|r| cs.area(r) * cols as f64).sum()
+}
+
+/// Random grid with quantised heights (few levels, so plateaus and ties are common) and
+/// integer per-row cell sizes (so D8 area sums are exact in f64).
+fn grid_strategy() -> impl Strategy<Value = (Array2<f32>, CellSizes)> {
+    (3usize..24, 3usize..24, 1u32..6, 0.0f32..7000.0).prop_flat_map(|(rows, cols, levels, base)| {
+        (
+            proptest::collection::vec(0..=levels, rows * cols),
+            proptest::collection::vec(1u32..4, rows),
+            proptest::collection::vec(1u32..4, rows),
+        )
+            .prop_map(move |(h, dx, dy)| {
+                let z = Array2::from_shape_vec(
+                    (rows, cols),
+                    h.iter().map(|&v| base + v as f32 * 3.0).collect(),
+                )
+                .unwrap();
+                let cs = CellSizes {
+                    dx: dx.iter().map(|&v| v as f64 * 10.0).collect(),
+                    dy: dy.iter().map(|&v| v as f64 * 10.0).collect(),
+                };
+                (z, cs)
+            })
+    })
+}
+
+fn rel_close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * a.abs().max(b.abs()).max(1e-300)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Property tests: optimised vs naive
+// ---------------------------------------------------------------------------------------------
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// Priority-Flood without ε equals Planchon–Darboux relaxation exactly.
+    #[test]
+    fn flat_fill_equals_naive((z, _cs) in grid_strategy()) {
+        let fast = analysis::priority_flood_fill_flat(&z);
+        let slow = naive::fill_flat(&z);
+        prop_assert_eq!(fast, slow);
+    }
+
+    /// Source accumulation (used with injected inflows by the drainage layer) equals the naive
+    /// chain walk, with integer sources so that sums are exact.
+    #[test]
+    fn source_accumulation_equals_naive(
+        (z, cs) in grid_strategy(),
+        seed in 0u64..1000,
+    ) {
+        let filled = analysis::priority_flood_fill(&z);
+        let rcv = analysis::d8_receivers(&filled, &cs);
+        let mut lcg = Lcg(seed);
+        let sources = Array2::from_shape_fn(z.dim(), |_| (lcg.next() * 50.0).floor());
+        let fast = analysis::accumulate_sources(&rcv, &sources);
+        let slow = naive::accumulate_sources(&rcv, &sources);
+        prop_assert_eq!(fast, slow);
+    }
+
+    /// Priority-Flood+ε: above the input and the flat fill, every interior cell drains, only
+    /// a few ulps above the flat fill, and a fixed point of both fills.
+    #[test]
+    fn eps_fill_properties((z, _cs) in grid_strategy()) {
+        let (rows, cols) = z.dim();
+        let eps = analysis::priority_flood_fill(&z);
+        let flat = analysis::priority_flood_fill_flat(&z);
+        for ((e, f), v) in eps.iter().zip(flat.iter()).zip(z.iter()) {
+            prop_assert!(e >= v && e >= f);
+            // At most one ulp per cell of the grid above the flat fill.
+            let mut bound = *f;
+            for _ in 0..rows * cols {
+                bound = analysis::next_up(bound);
+            }
+            prop_assert!(*e <= bound);
+        }
+        for (r, c) in interior(rows, cols) {
+            prop_assert!(has_lower_neighbour(&eps, r, c), "cell ({r},{c}) does not drain");
+        }
+        // Border cells are outlets and keep their height.
+        for r in 0..rows {
+            for c in 0..cols {
+                if r == 0 || c == 0 || r == rows - 1 || c == cols - 1 {
+                    prop_assert_eq!(eps[[r, c]], z[[r, c]]);
+                }
+            }
+        }
+        prop_assert_eq!(&analysis::priority_flood_fill(&eps), &eps);
+        prop_assert_eq!(&analysis::priority_flood_fill_flat(&eps), &eps);
+    }
+
+    /// D8 accumulation on the ε-filled DEM equals the chain-following reference exactly
+    /// (integer areas), every interior cell has a receiver, and the sinks receive all the area.
+    #[test]
+    fn d8_equals_naive((z, cs) in grid_strategy()) {
+        let (rows, cols) = z.dim();
+        let filled = analysis::priority_flood_fill(&z);
+        let fast = analysis::flow_accumulation_d8(&filled, &cs);
+        let slow = naive::flow_accumulation_d8(&filled, &cs);
+        prop_assert_eq!(&fast, &slow);
+        let rcv = analysis::d8_receivers(&filled, &cs);
+        for (r, c) in interior(rows, cols) {
+            prop_assert!(rcv[[r, c]] < 8);
+        }
+        prop_assert_eq!(sink_total(&fast, &rcv), total_area(&cs, rows, cols));
+        // Also on the raw (unfilled) DEM, where pits and flats are sinks.
+        let raw_fast = analysis::flow_accumulation_d8(&z, &cs);
+        prop_assert_eq!(&raw_fast, &naive::flow_accumulation_d8(&z, &cs));
+        let raw_rcv = analysis::d8_receivers(&z, &cs);
+        prop_assert_eq!(sink_total(&raw_fast, &raw_rcv), total_area(&cs, rows, cols));
+    }
+
+    /// MFD accumulation matches the relaxation reference within 1e-9 relative and conserves
+    /// area at the sinks.
+    #[test]
+    fn mfd_matches_naive((z, cs) in grid_strategy(), p in 0.5f64..8.0) {
+        let (rows, cols) = z.dim();
+        let filled = analysis::priority_flood_fill(&z);
+        for exponent in [MFD_EXPONENT, p] {
+            let fast = analysis::flow_accumulation_mfd(&filled, &cs, exponent);
+            let slow = naive::flow_accumulation_mfd(&filled, &cs, exponent);
+            for (a, b) in fast.iter().zip(slow.iter()) {
+                prop_assert!(rel_close(*a, *b, 1e-9), "{a} vs {b}");
+            }
+            let rcv = analysis::d8_receivers(&filled, &cs);
+            let sinks = sink_total(&fast, &rcv);
+            prop_assert!(rel_close(sinks, total_area(&cs, rows, cols), 1e-9));
+            for (a, area) in fast.iter().zip(fast.indexed_iter().map(|((r, _), _)| cs.area(r))) {
+                prop_assert!(*a >= area * (1.0 - 1e-12));
+            }
+        }
+    }
+
+    /// Horn gradient matches the per-cell reference.
+    #[test]
+    fn gradient_matches_naive((z, cs) in grid_strategy()) {
+        let (gx, gy) = analysis::gradient(&z, &cs);
+        let (nx, ny) = naive::gradient(&z, &cs);
+        for (a, b) in gx.iter().chain(gy.iter()).zip(nx.iter().chain(ny.iter())) {
+            prop_assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "{a} vs {b}");
+        }
+    }
+
+    /// FFT (radix-2 and Bluestein) vs naive DFT within 1e-9 of the signal norm; inverse
+    /// round-trips.
+    #[test]
+    fn fft_matches_dft(v in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3), 1..70)) {
+        let x: Vec<Complex> = v.iter().map(|&(a, b)| Complex::new(a, b)).collect();
+        let norm = x.iter().map(|c| c.norm_sqr()).sum::<f64>().sqrt().max(1.0);
+        let n = x.len() as f64;
+        let mut f = x.clone();
+        analysis::fft(&mut f, false);
+        let d = analysis::dft_naive(&x, false);
+        for (a, b) in f.iter().zip(&d) {
+            prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * norm * n.sqrt());
+        }
+        analysis::fft(&mut f, true);
+        for (a, b) in f.iter().zip(&x) {
+            prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * norm);
+        }
+    }
+
+    /// 2D FFT vs the naive 2D DFT.
+    #[test]
+    fn fft2_matches_dft2(rows in 1usize..20, cols in 1usize..20, seed in any::<u64>()) {
+        let mut g = Lcg(seed);
+        let x = Array2::from_shape_fn((rows, cols), |_| Complex::new(g.next() - 0.5, g.next() - 0.5));
+        let mut f = x.clone();
+        analysis::fft2(&mut f, false);
+        let d = naive::dft2(&x, false);
+        let scale = (rows * cols) as f64;
+        for (a, b) in f.iter().zip(d.iter()) {
+            prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * scale);
+        }
+    }
+
+    /// wasserstein1 equals the mean absolute difference of sorted samples for equal sizes,
+    /// is symmetric, and replicating a sample does not change its distribution.
+    #[test]
+    fn wasserstein_properties(
+        a in proptest::collection::vec(-100.0f64..100.0, 1..40),
+        b in proptest::collection::vec(-100.0f64..100.0, 1..40),
+    ) {
+        let w = analysis::wasserstein1(&a, &b);
+        prop_assert!(rel_close(w, analysis::wasserstein1(&b, &a), 1e-12) || w < 1e-12);
+        let a2: Vec<f64> = a.iter().chain(a.iter()).copied().collect();
+        let w2 = analysis::wasserstein1(&a2, &b);
+        prop_assert!((w - w2).abs() <= 1e-9 * w.max(1.0));
+        let n = a.len().min(b.len());
+        let (mut sa, mut sb) = (a[..n].to_vec(), b[..n].to_vec());
+        sa.sort_by(f64::total_cmp);
+        sb.sort_by(f64::total_cmp);
+        let brute = sa.iter().zip(&sb).map(|(x, y)| (x - y).abs()).sum::<f64>() / n as f64;
+        prop_assert!((analysis::wasserstein1(&a[..n], &b[..n]) - brute).abs() <= 1e-9 * brute.max(1.0));
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hand-computed derivatives and hillshade
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn slope_of_plane_is_its_gradient() {
+    let cell = 30.0;
+    let z = plane(9, 11, cell, |x, _| 0.1 * x);
+    let cs = CellSizes::uniform(9, cell);
+    let s = analysis::slope(&z, &cs);
+    let deg = analysis::slope_degrees(&z, &cs);
+    for (r, c) in interior(9, 11) {
+        assert!((s[[r, c]] - 0.1).abs() < 1e-5, "{}", s[[r, c]]);
+        assert!((deg[[r, c]] as f64 - 0.1f64.atan().to_degrees()).abs() < 1e-3);
+    }
+}
+
+#[test]
+fn aspect_and_northness_of_planes() {
+    let cs = CellSizes::uniform(7, 10.0);
+    type PlaneCase = (fn(f64, f64) -> f64, f32, f32);
+    let cases: [PlaneCase; 4] = [
+        (|x, _| -0.2 * x, 90.0, 0.0),  // descends to the east
+        (|_, y| -0.2 * y, 0.0, 1.0),   // descends to the north
+        (|x, _| 0.2 * x, 270.0, 0.0),  // descends to the west
+        (|_, y| 0.2 * y, 180.0, -1.0), // descends to the south
+    ];
+    for (f, want_aspect, want_north) in cases {
+        let z = plane(7, 7, 10.0, f);
+        let a = analysis::aspect(&z, &cs);
+        let n = analysis::northness(&z, &cs);
+        for (r, c) in interior(7, 7) {
+            assert!(
+                (a[[r, c]] - want_aspect).abs() < 1e-3,
+                "{} vs {want_aspect}",
+                a[[r, c]]
+            );
+            assert!((n[[r, c]] - want_north).abs() < 1e-5);
+        }
+    }
+    // South-east facing: 135°.
+    let z = plane(7, 7, 10.0, |x, y| -0.1 * x + 0.1 * y);
+    assert!((analysis::aspect(&z, &cs)[[3, 3]] - 135.0).abs() < 1e-3);
+    // Flat: aspect 0, northness 0.
+    let flat = Array2::from_elem((5, 5), 1234.5f32);
+    let cs5 = CellSizes::uniform(5, 10.0);
+    assert!(analysis::aspect(&flat, &cs5).iter().all(|&v| v == 0.0));
+    assert!(analysis::northness(&flat, &cs5).iter().all(|&v| v == 0.0));
+    // Aspect always lies in [0, 360).
+    let mut g = Lcg(7);
+    let rnd = Array2::from_shape_fn((20, 20), |_| (g.next() * 100.0) as f32);
+    let a = analysis::aspect(&rnd, &CellSizes::uniform(20, 5.0));
+    assert!(a.iter().all(|&v| (0.0..360.0).contains(&v)));
+}
+
+#[test]
+fn halving_dx_doubles_x_slope() {
+    let z = plane(6, 8, 10.0, |x, y| 0.05 * x + 0.02 * y);
+    let cs = CellSizes::uniform(6, 10.0);
+    let half = CellSizes {
+        dx: vec![5.0; 6],
+        dy: vec![10.0; 6],
+    };
+    let (gx, gy) = analysis::gradient(&z, &cs);
+    let (hx, hy) = analysis::gradient(&z, &half);
+    for (r, c) in interior(6, 8) {
+        assert!((gx[[r, c]] - 0.05).abs() < 1e-5);
+        assert!((gy[[r, c]] - 0.02).abs() < 1e-5);
+        assert!((hx[[r, c]] - 2.0 * gx[[r, c]]).abs() < 1e-5);
+        assert!((hy[[r, c]] - gy[[r, c]]).abs() < 1e-7);
+    }
+}
+
+#[test]
+fn hillshade_values() {
+    let cs = CellSizes::uniform(5, 10.0);
+    let flat = Array2::from_elem((5, 5), 500.0f32);
+    for alt in [10.0f32, 45.0, 80.0] {
+        let h = analysis::hillshade(&flat, &cs, 315.0, alt);
+        assert!(h
+            .iter()
+            .all(|&v| (v as f64 - (alt as f64).to_radians().sin()).abs() < 1e-6));
+    }
+    let hu = analysis::hillshade_u8(&flat, &cs, 315.0, 45.0);
+    assert!(hu.iter().all(|&v| v == 180)); // round(255·sin 45°)
+                                           // A slope facing the light (descending to the north-west) is brighter than one facing away.
+    let towards = plane(5, 5, 10.0, |x, y| 0.5 * x - 0.5 * y);
+    let away = plane(5, 5, 10.0, |x, y| -0.5 * x + 0.5 * y);
+    let ht = analysis::hillshade(&towards, &cs, 315.0, 45.0)[[2, 2]];
+    let ha = analysis::hillshade(&away, &cs, 315.0, 45.0)[[2, 2]];
+    // Slope angle β = atan(√0.5); facing the light: cos(45° − β), facing away: cos(45° + β).
+    let beta = 0.5f64.sqrt().atan();
+    let q = std::f64::consts::FRAC_PI_4;
+    assert!((ht as f64 - (q - beta).cos()).abs() < 1e-6, "{ht}");
+    assert!((ha as f64 - (q + beta).cos()).abs() < 1e-6, "{ha}");
+    // Facing the light exactly at slope = 90° − altitude: fully lit.
+    let lit = plane(5, 5, 10.0, |_, y| -y); // 45° slope facing north
+    assert!((analysis::hillshade(&lit, &cs, 0.0, 45.0)[[2, 2]] - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn curvature_of_paraboloids() {
+    let cell = 2.0;
+    let bowl = plane(9, 9, cell, |x, y| (x - 8.0).powi(2) + (y + 8.0).powi(2));
+    let dome = bowl.mapv(|v| -v);
+    let cs = CellSizes::uniform(9, cell);
+    let cb = analysis::curvature(&bowl, &cs);
+    let cd = analysis::curvature(&dome, &cs);
+    for (r, c) in interior(9, 9) {
+        assert!((cb[[r, c]] + 4.0).abs() < 1e-4, "{}", cb[[r, c]]);
+        assert!((cd[[r, c]] - 4.0).abs() < 1e-4);
+    }
+    let tilted = plane(6, 6, 3.0, |x, y| 0.3 * x - 0.7 * y + 100.0);
+    let ct = analysis::curvature(&tilted, &CellSizes::uniform(6, 3.0));
+    for (r, c) in interior(6, 6) {
+        assert!(ct[[r, c]].abs() < 1e-5);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hand-computed flooding and flow
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn flood_extent_of_known_pit() {
+    let mut z = Array2::from_elem((5, 5), 10.0f32);
+    z[[2, 2]] = 5.0;
+    assert!((analysis::flood_extent(&z) - 4.0).abs() < 1e-12);
+    let flat = analysis::priority_flood_fill_flat(&z);
+    assert_eq!(flat[[2, 2]], 10.0);
+    // A 2×2 pit behind a rim with a lower spill point.
+    let mut z = Array2::from_elem((6, 6), 20.0f32);
+    for r in 1..5 {
+        for c in 1..5 {
+            z[[r, c]] = 15.0;
+        }
+    }
+    z[[2, 2]] = 1.0;
+    z[[2, 3]] = 2.0;
+    z[[3, 2]] = 3.0;
+    z[[3, 3]] = 4.0;
+    z[[0, 3]] = 12.0; // spill point on the border
+    let flat = analysis::priority_flood_fill_flat(&z);
+    for (r, c) in [(2, 2), (2, 3), (3, 2), (3, 3)] {
+        assert_eq!(flat[[r, c]], 15.0);
+    }
+    assert!((analysis::flood_extent(&z) - 400.0 / 36.0).abs() < 1e-12);
+}
+
+#[test]
+fn eps_fill_drains_at_high_elevation() {
+    // A 7000 m plateau with a pit: a fixed ε of 1e-5 would vanish here (ulp ≈ 0.0005).
+    let mut z = Array2::from_elem((30, 30), 7000.0f32);
+    z[[15, 15]] = 6990.0;
+    let f = analysis::priority_flood_fill(&z);
+    for (r, c) in interior(30, 30) {
+        assert!(has_lower_neighbour(&f, r, c));
+        assert!(f[[r, c]] > 7000.0 && f[[r, c]] < 7000.1);
+    }
+}
+
+#[test]
+fn d8_on_tilted_plane_sums_columns() {
+    // Descends to the south; rows have different widths (as in EPSG:4326).
+    let rows = 8;
+    let cols = 5;
+    let z = Array2::from_shape_fn((rows, cols), |(r, _)| 1000.0 - 10.0 * r as f32);
+    let cs = CellSizes {
+        dx: (0..rows).map(|r| 20.0 + r as f64).collect(),
+        dy: vec![25.0; rows],
+    };
+    let rcv = analysis::d8_receivers(&z, &cs);
+    for r in 0..rows - 1 {
+        for c in 0..cols {
+            assert_eq!(rcv[[r, c]], 6, "south");
+        }
+    }
+    assert!(rcv.row(rows - 1).iter().all(|&d| d == D8_NONE));
+    let acc = analysis::flow_accumulation_d8(&z, &cs);
+    let column: f64 = (0..rows).map(|r| cs.area(r)).sum();
+    for c in 0..cols {
+        assert_eq!(acc[[rows - 1, c]], column);
+        assert_eq!(acc[[0, c]], cs.area(0));
+    }
+    let log = analysis::log_upstream_area(&acc);
+    assert!((log[[rows - 1, 0]] as f64 - column.log10()).abs() < 1e-6);
+    // MFD on the same plane: the southern row also receives exactly the total area.
+    let mfd = analysis::flow_accumulation_mfd(&z, &cs, MFD_EXPONENT);
+    let south: f64 = mfd.row(rows - 1).sum();
+    assert!(rel_close(south, total_area(&cs, rows, cols), 1e-12));
+}
+
+#[test]
+fn d8_ties_take_lowest_direction() {
+    // Centre cell with equal drops to E and W: E (index 0) wins; to N and S: N (2) wins.
+    let mut z = Array2::from_elem((3, 3), 10.0f32);
+    z[[1, 1]] = 5.0;
+    z[[1, 0]] = 0.0;
+    z[[1, 2]] = 0.0;
+    assert_eq!(
+        analysis::d8_receivers(&z, &CellSizes::uniform(3, 1.0))[[1, 1]],
+        0
+    );
+    let mut z = Array2::from_elem((3, 3), 10.0f32);
+    z[[1, 1]] = 5.0;
+    z[[0, 1]] = 0.0;
+    z[[2, 1]] = 0.0;
+    assert_eq!(
+        analysis::d8_receivers(&z, &CellSizes::uniform(3, 1.0))[[1, 1]],
+        2
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Metrics and spectrum
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn wasserstein_of_shifted_sets_is_the_shift() {
+    let mut g = Lcg(3);
+    let a: Vec<f64> = (0..50).map(|_| g.next() * 10.0).collect();
+    let b: Vec<f64> = a.iter().map(|v| v + 2.5).collect();
+    assert!((analysis::wasserstein1(&a, &b) - 2.5).abs() < 1e-12);
+    // Different sizes: {0, 1} vs {0, 0.5, 1} → ∫|F_a⁻¹ − F_b⁻¹| = 1/6·0.5 + 1/6·0.5 = 1/6.
+    assert!((analysis::wasserstein1(&[0.0, 1.0], &[0.0, 0.5, 1.0]) - 1.0 / 6.0).abs() < 1e-15);
+    assert_eq!(analysis::wasserstein1(&[], &[]), 0.0);
+    assert!(analysis::wasserstein1(&[1.0], &[]).is_nan());
+}
+
+#[test]
+fn rmse_relief_box_down() {
+    let a = Array2::from_shape_vec((2, 2), vec![1.0f32, 2.0, 3.0, 4.0]).unwrap();
+    let b = Array2::from_shape_vec((2, 2), vec![1.0f32, 2.0, 3.0, 6.0]).unwrap();
+    assert!((analysis::rmse(&a, &b) - 1.0).abs() < 1e-12);
+    assert!(analysis::rmse(&a, &Array2::zeros((3, 2))).is_nan());
+    assert_eq!(analysis::relief(&a), 3.0);
+    let z = Array2::from_shape_fn((4, 6), |(r, c)| (r * 6 + c) as f32);
+    let d = analysis::box_down(&z, 2).unwrap();
+    assert_eq!(d.dim(), (2, 3));
+    assert_eq!(d[[0, 0]], (0.0 + 1.0 + 6.0 + 7.0) / 4.0);
+    assert_eq!(d[[1, 2]], (16.0 + 17.0 + 22.0 + 23.0) / 4.0);
+    assert!(analysis::box_down(&z, 4).is_err());
+    assert!(analysis::box_down(&z, 0).is_err());
+    assert_eq!(analysis::box_down(&z, 1).unwrap(), z);
+}
+
+#[test]
+fn band_energy_of_sinusoid() {
+    let n = 64;
+    let f0 = 0.25; // cycles per pixel, along x
+    let z = Array2::from_shape_fn((n, n), |(_, c)| {
+        (2.0 * std::f64::consts::PI * f0 * c as f64).sin() as f32 * 50.0
+    });
+    let total = analysis::band_energy(&z, 0.0, 1.0);
+    let band = analysis::band_energy(&z, 0.2, 0.3);
+    assert!(total > 0.0);
+    assert!(band > 0.999 * total, "{band} of {total}");
+    assert!(analysis::band_energy(&z, 0.0, 0.125) < 1e-9 * total);
+    // Removed by ×4 down-sampling.
+    assert!(analysis::band_energy(&z, 0.5 / 4.0, 0.5) > 0.999 * total);
+    // A slow sinusoid (1/32 cycles/pixel) is kept by ×4 down-sampling.
+    let slow = Array2::from_shape_fn((n, 48), |(r, _)| {
+        (2.0 * std::f64::consts::PI * r as f64 / 32.0).cos() as f32
+    });
+    let t = analysis::band_energy(&slow, 0.0, 1.0);
+    assert!(analysis::band_energy(&slow, 0.125, 0.5) < 1e-6 * t);
+    // Constant grid: no energy after mean removal.
+    assert!(analysis::band_energy(&Array2::from_elem((8, 8), 3.0f32), 0.0, 1.0) < 1e-20);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Realism sanity (Tien Shan-like expectations)
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn flood_extent_random_vs_tilted() {
+    let mut g = Lcg(42);
+    let rnd = Array2::from_shape_fn((100, 120), |_| (g.next() * 3000.0 + 2000.0) as f32);
+    let fe = analysis::flood_extent(&rnd);
+    assert!(fe > 30.0, "random heights flood {fe}%");
+    let tilted = plane(100, 120, 90.0, |x, y| 4000.0 - 0.2 * x + 0.3 * y);
+    assert_eq!(analysis::flood_extent(&tilted), 0.0);
+    assert_eq!(analysis::priority_flood_fill_flat(&tilted), tilted);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Edge cases: empty, tiny and NaN grids never panic
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn tiny_and_empty_grids() {
+    for (rows, cols) in [(0, 0), (0, 5), (1, 1), (1, 7), (2, 2), (2, 9), (7, 1)] {
+        let z = Array2::from_shape_fn((rows, cols), |(r, c)| (r * 3 + c) as f32);
+        let cs = CellSizes::uniform(rows, 10.0);
+        let empty_cs = CellSizes {
+            dx: vec![],
+            dy: vec![],
+        };
+        for cs in [&cs, &empty_cs] {
+            let _ = analysis::gradient(&z, cs);
+            let _ = analysis::slope_degrees(&z, cs);
+            let _ = analysis::aspect(&z, cs);
+            let _ = analysis::northness(&z, cs);
+            let _ = analysis::curvature(&z, cs);
+            let _ = analysis::hillshade_u8(&z, cs, 315.0, 45.0);
+            let _ = analysis::flow_accumulation_mfd(&z, cs, MFD_EXPONENT);
+            let acc = analysis::flow_accumulation_d8(&z, cs);
+            assert_eq!(acc.dim(), (rows, cols));
+        }
+        assert_eq!(analysis::priority_flood_fill(&z), z);
+        assert_eq!(analysis::priority_flood_fill_flat(&z), z);
+        assert_eq!(analysis::flood_extent(&z), 0.0);
+        let _ = analysis::band_energy(&z, 0.0, 0.5);
+        let _ = analysis::relief(&z);
+        let _ = analysis::rmse(&z, &z);
+    }
+}
+
+#[test]
+fn nan_cells_are_outlets() {
+    // A pit whose bottom is nodata: it drains into the NaN, nothing floods.
+    let mut z = Array2::from_elem((7, 7), 10.0f32);
+    for r in 2..5 {
+        for c in 2..5 {
+            z[[r, c]] = 5.0;
+        }
+    }
+    z[[3, 3]] = f32::NAN;
+    let flat = analysis::priority_flood_fill_flat(&z);
+    assert!(flat[[3, 3]].is_nan());
+    assert_eq!(flat[[2, 2]], 5.0);
+    assert_eq!(analysis::flood_extent(&z), 0.0);
+    let eps = analysis::priority_flood_fill(&z);
+    assert!(eps[[3, 3]].is_nan());
+    for (r, c) in interior(7, 7) {
+        if !z[[r, c]].is_nan() {
+            assert!(has_lower_neighbour(&eps, r, c));
+        }
+    }
+    assert_eq!(
+        naive::fill_flat(&z).iter().filter(|v| v.is_nan()).count(),
+        1
+    );
+    let cs = CellSizes::uniform(7, 10.0);
+    let acc = analysis::flow_accumulation_d8(&eps, &cs);
+    let rcv = analysis::d8_receivers(&eps, &cs);
+    assert_eq!(rcv[[3, 3]], D8_NONE);
+    assert_eq!(sink_total(&acc, &rcv), 49.0 * 100.0);
+    let mfd = analysis::flow_accumulation_mfd(&eps, &cs, MFD_EXPONENT);
+    assert!(mfd.iter().all(|v| v.is_finite()));
+    let all_nan = Array2::from_elem((4, 4), f32::NAN);
+    assert!(analysis::priority_flood_fill(&all_nan)
+        .iter()
+        .all(|v| v.is_nan()));
+    assert_eq!(analysis::relief(&all_nan), 0.0);
+    let _ = analysis::aspect(&all_nan, &cs);
+    let _ = analysis::band_energy(&all_nan, 0.0, 0.5);
+}

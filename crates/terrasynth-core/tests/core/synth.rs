@@ -1,0 +1,197 @@
+//! Amplifier invariants: window invariance (seamlessness), determinism across thread counts, zoom
+//! consistency, robustness on flat and nodata input, and error handling.
+
+use ndarray::{s, Array2};
+use proptest::prelude::*;
+use terrasynth_core::dictionary::MatchWeights;
+use terrasynth_core::synth::{amplify_chain, Amplifier, ClampedRaster, Field, SynthError, Window};
+
+use terrasynth_test_support::{small_dictionary, synthetic_terrain};
+
+fn box2(a: &Array2<f32>) -> Array2<f32> {
+    Array2::from_shape_fn((a.nrows() / 2, a.ncols() / 2), |(r, c)| {
+        (a[[2 * r, 2 * c]]
+            + a[[2 * r, 2 * c + 1]]
+            + a[[2 * r + 1, 2 * c]]
+            + a[[2 * r + 1, 2 * c + 1]])
+            / 4.0
+    })
+}
+
+fn rmse(a: &Array2<f32>, b: &Array2<f32>) -> f64 {
+    let n = a.len() as f64;
+    (a.iter()
+        .zip(b.iter())
+        .map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt()
+}
+
+// --- window invariance: a pixel's value does not depend on the window it is computed in ---
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, .. ProptestConfig::default() })]
+
+    #[test]
+    fn one_level_is_window_invariant(c0 in -40i64..120, r0 in -40i64..120, w in 1usize..70, h in 1usize..70) {
+        let dict = small_dictionary(3);
+        let base = synthetic_terrain(96, 96, 9);
+        let src = ClampedRaster { elevation: &base, layers: vec![] };
+        let amps = vec![Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap()];
+        let big = Window::new(-48, -48, 256, 256);
+        let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
+        let part_w = Window::new(c0, r0, w, h);
+        let part = amplify_chain(&amps, &src, part_w, 100.0).unwrap();
+        let expect = whole.crop(part_w).unwrap();
+        // Bit-for-bit equality.
+        prop_assert!(part.elevation.iter().zip(expect.elevation.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        for ((na, a), (nb, b)) in part.layers.iter().zip(&expect.layers) {
+            prop_assert_eq!(na, nb);
+            prop_assert!(a.iter().zip(b.iter()).all(|(x, y)| x.to_bits() == y.to_bits()));
+        }
+    }
+
+    #[test]
+    fn two_levels_are_window_invariant(c0 in -20i64..300, r0 in -20i64..300, w in 1usize..90, h in 1usize..90) {
+        let dict = small_dictionary(4);
+        let base = synthetic_terrain(80, 80, 2);
+        let src = ClampedRaster { elevation: &base, layers: vec![] };
+        let weights = MatchWeights::default();
+        let amps = vec![Amplifier::new(dict.clone(), &weights).unwrap(), Amplifier::new(dict.clone(), &weights).unwrap()];
+        let big = Window::new(-32, -32, 420, 420);
+        let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
+        let part_w = Window::new(c0, r0, w, h);
+        let part = amplify_chain(&amps, &src, part_w, 100.0).unwrap();
+        let expect = whole.crop(part_w).unwrap();
+        prop_assert!(part.elevation.iter().zip(expect.elevation.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+}
+
+// --- determinism across rayon thread counts ---
+
+#[test]
+fn result_is_identical_with_one_and_several_threads() {
+    let dict = small_dictionary(5);
+    let base = synthetic_terrain(64, 64, 11);
+    let run = |threads: usize| -> Field {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let src = ClampedRaster {
+                elevation: &base,
+                layers: vec![],
+            };
+            let w = MatchWeights::default();
+            let amps = vec![
+                Amplifier::new(dict.clone(), &w).unwrap(),
+                Amplifier::new(dict.clone(), &w).unwrap(),
+            ];
+            amplify_chain(&amps, &src, Window::new(0, 0, 256, 256), 100.0).unwrap()
+        })
+    };
+    let one = run(1);
+    let four = run(4);
+    assert!(one
+        .elevation
+        .iter()
+        .zip(four.elevation.iter())
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+}
+
+// --- zoom consistency: box averages of the result reproduce the input ---
+
+#[test]
+fn two_levels_box_average_back_to_the_input() {
+    let dict = small_dictionary(6);
+    let base = synthetic_terrain(64, 64, 21);
+    let src = ClampedRaster {
+        elevation: &base,
+        layers: vec![],
+    };
+    let w = MatchWeights::default();
+    let amps = vec![
+        Amplifier::new(dict.clone(), &w).unwrap(),
+        Amplifier::new(dict.clone(), &w).unwrap(),
+    ];
+    let out = amplify_chain(&amps, &src, Window::new(0, 0, 256, 256), 100.0).unwrap();
+    let back = box2(&box2(&out.elevation));
+    let relief = base.iter().cloned().fold(f32::MIN, f32::max)
+        - base.iter().cloned().fold(f32::MAX, f32::min);
+    let err = rmse(&back, &base);
+    assert!(
+        err < 0.01 * f64::from(relief),
+        "rmse {err} vs relief {relief}"
+    );
+    // It adds detail: the result is not a smooth interpolation of the input.
+    let nn = Array2::from_shape_fn((256, 256), |(r, c)| base[[r / 4, c / 4]]);
+    assert!(rmse(&out.elevation, &nn) > 1.0);
+}
+
+// --- flat and degenerate input ---
+
+#[test]
+fn flat_input_stays_flat_and_finite() {
+    let dict = small_dictionary(7);
+    let base = Array2::from_elem((40, 40), 1234.5f32);
+    let src = ClampedRaster {
+        elevation: &base,
+        layers: vec![],
+    };
+    let w = MatchWeights::default();
+    let amps = vec![Amplifier::new(dict.clone(), &w).unwrap()];
+    let out = amplify_chain(&amps, &src, Window::new(0, 0, 80, 80), 50.0).unwrap();
+    assert!(
+        out.elevation.iter().all(|v| (v - 1234.5).abs() < 1e-2),
+        "flat stays flat"
+    );
+}
+
+#[test]
+fn parent_too_small_is_an_error() {
+    let dict = small_dictionary(8);
+    let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
+    let out = Window::new(0, 0, 32, 32);
+    let need = amp.parent_window_for(out);
+    let short = Window::new(need.col0 + 1, need.row0, need.cols - 1, need.rows);
+    let parent = Field::elevation_only(short, Array2::zeros((short.rows, short.cols)));
+    assert!(matches!(
+        amp.amplify(&parent, out, 100.0),
+        Err(SynthError::ParentTooSmall { .. })
+    ));
+    let full = Field::elevation_only(need, Array2::from_elem((need.rows, need.cols), f32::NAN));
+    assert!(matches!(
+        amp.amplify(&full, out, 100.0),
+        Err(SynthError::NonFinite)
+    ));
+}
+
+#[test]
+fn parent_window_is_what_amplify_reads() {
+    // Values outside the announced parent window must not matter: poison them.
+    let dict = small_dictionary(9);
+    let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
+    let out = Window::new(13, -7, 40, 33);
+    let need = amp.parent_window_for(out);
+    let base = synthetic_terrain(200, 200, 4);
+    let at = |w: Window| {
+        Array2::from_shape_fn((w.rows, w.cols), |(r, c)| {
+            base[[
+                (w.row0 + r as i64 + 50) as usize,
+                (w.col0 + c as i64 + 50) as usize,
+            ]]
+        })
+    };
+    let exact = Field::elevation_only(need, at(need));
+    let wide_w = Window::new(need.col0 - 5, need.row0 - 5, need.cols + 10, need.rows + 10);
+    let mut wide = at(wide_w);
+    wide.slice_mut(s![0..5, ..]).fill(1e6);
+    wide.slice_mut(s![.., 0..5]).fill(-1e6);
+    let a = amp.amplify(&exact, out, 100.0).unwrap();
+    let b = amp
+        .amplify(&Field::elevation_only(wide_w, wide), out, 100.0)
+        .unwrap();
+    assert_eq!(a.elevation, b.elevation);
+}

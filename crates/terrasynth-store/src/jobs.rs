@@ -1,0 +1,552 @@
+//! Dictionary build jobs: a bounded queue (full → 503) feeding a fixed pool of low-priority worker
+//! threads, each running builds on its own small rayon pool so that builds never compete with
+//! tile synthesis for the blocking pool or the global rayon pool. Job records live in memory and
+//! are written to the store on every state change; on start, jobs a previous process left queued
+//! or running are recorded as failed. A cancelled or failed build writes nothing to the store: the
+//! dictionary is stored (atomically) only once the build has succeeded.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use terrasynth_core::dictionary::build::{build_cancellable, BuildOptions, Exemplar};
+use terrasynth_core::dictionary::{DictionaryError, ExemplarOptions, LayerKind, Learning};
+use terrasynth_core::landscape::{exemplar_vegetation, LandscapeConfig, Species};
+
+use crate::catalog::{lock, Catalog};
+use crate::error::{ServiceError, StoreError};
+use crate::exemplar;
+use crate::store::{ObjectKind, Store};
+use crate::time::now_rfc3339;
+
+/// State of a job.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum JobState {
+    /// Waiting for a worker.
+    Queued,
+    /// Building.
+    Running,
+    /// Done; `result` holds the dictionary id.
+    Succeeded,
+    /// Failed; `error` says why.
+    Failed,
+    /// Cancelled by `DELETE /admin/jobs/{id}`.
+    Cancelled,
+}
+
+impl JobState {
+    /// Whether the job can still change state.
+    pub fn is_active(self) -> bool {
+        matches!(self, JobState::Queued | JobState::Running)
+    }
+}
+
+/// `POST /admin/dictionaries`: what to build.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DictionaryRequest {
+    /// Human name of the dictionary (an alias of its content id): 1–64 letters, digits, `-`
+    /// or `_`.
+    #[schema(pattern = "^[A-Za-z0-9_-]{1,64}$")]
+    pub name: String,
+    /// Ids of stored exemplars.
+    pub exemplars: Vec<String>,
+    /// Number of atoms (0 keeps every patch). Default 256.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub atoms: Option<usize>,
+    /// High-resolution patch side, a multiple of 4 between 4 and 64. Default 16.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch: Option<usize>,
+    /// Step between patches, ≥ 1. Default 8.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stride: Option<usize>,
+    /// `complete` or `medoids[:ITERATIONS]`. Default `medoids` (6 rounds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learning: Option<String>,
+    /// Matching weights recommended with this dictionary, by term or layer name
+    /// (`elevation`, `altitude`, `slope`, or an exemplar layer); checked against the built
+    /// dictionary's layers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<BTreeMap<String, f32>>,
+    /// Seed of every random choice. Default 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// Species whose vegetation layers the atoms carry, each `{"name", "colour", "elevation",
+    /// "slope", "northness", "wetness"}` as in a world file's `[[landscape.species]]` (niche
+    /// ranges `{"min", "max", "falloff"}`). Default: the default world's species, so that worlds
+    /// built on the dictionary synthesize vegetation from its atoms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub species: Option<Vec<Species>>,
+}
+
+/// A job record.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+pub struct Job {
+    /// Job id.
+    pub id: String,
+    /// What the job does (`dictionary`).
+    pub kind: String,
+    /// State.
+    pub state: JobState,
+    /// Progress 0–1.
+    pub progress: f64,
+    /// Current stage (`queued`, `reading`, `patches`, `learning`, `storing`, `done`).
+    pub stage: String,
+    /// Why it failed.
+    pub error: Option<String>,
+    /// The dictionary id, once succeeded.
+    pub result: Option<String>,
+    /// When it was submitted (RFC 3339, UTC).
+    pub created: String,
+    /// When a worker started it.
+    pub started: Option<String>,
+    /// When it ended.
+    pub finished: Option<String>,
+    /// The request.
+    pub request: DictionaryRequest,
+}
+
+struct Inner {
+    store: Store,
+    catalog: Arc<Catalog>,
+    /// The landscape whose species (and seeding simulation) derive the vegetation layers of
+    /// builds that name no species.
+    landscape: Arc<LandscapeConfig>,
+    records: Mutex<BTreeMap<String, Job>>,
+    cancels: Mutex<BTreeMap<String, Arc<AtomicBool>>>,
+    tx: SyncSender<String>,
+}
+
+/// Why a build job did not produce a dictionary (its record's `error` is this, worded).
+#[derive(Debug, thiserror::Error)]
+enum BuildFailure {
+    /// Cancelled by `DELETE /admin/jobs/{id}`.
+    #[error("cancelled")]
+    Cancelled,
+    /// The request cannot be built (an exemplar is gone, the species or weights do not fit).
+    #[error("invalid dictionary parameters: {0}")]
+    Invalid(String),
+    /// Building failed.
+    #[error(transparent)]
+    Build(#[from] DictionaryError),
+    /// The store failed reading an exemplar or writing the dictionary.
+    #[error("store: {0}")]
+    Store(#[from] StoreError),
+}
+
+/// How many builds run and wait.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct JobSettings {
+    /// Builds running at once (each on its own low-priority worker thread).
+    pub workers: usize,
+    /// Threads of each build (a dedicated rayon pool).
+    pub threads: usize,
+    /// Builds allowed to wait for a worker (beyond: [`ServiceError::QueueFull`]).
+    pub queue: usize,
+}
+
+/// The job queue and its workers.
+#[derive(Clone)]
+pub struct Jobs {
+    inner: Arc<Inner>,
+}
+
+/// Lowers the calling thread's scheduling priority (Linux: per-thread nice value).
+fn lower_priority() {
+    #[cfg(unix)]
+    // SAFETY: nice(2) only changes the calling thread's scheduling priority.
+    unsafe {
+        let _ = libc::nice(10);
+    }
+}
+
+impl Jobs {
+    /// Loads the job records of `store` (marking interrupted ones failed) and starts `workers`
+    /// worker threads, each building on `threads` threads, with `queue` waiting places. Builds
+    /// that name no species derive the vegetation layers of `landscape`.
+    pub fn start(
+        store: Store,
+        catalog: Arc<Catalog>,
+        landscape: Arc<LandscapeConfig>,
+        settings: JobSettings,
+    ) -> Result<Jobs, ServiceError> {
+        let JobSettings {
+            workers,
+            threads,
+            queue,
+        } = settings;
+        let (tx, rx) = sync_channel::<String>(queue);
+        let mut records = BTreeMap::new();
+        for (id, bytes) in store.jobs()? {
+            match serde_json::from_slice::<Job>(&bytes) {
+                Ok(mut job) => {
+                    if job.state.is_active() {
+                        job.state = JobState::Failed;
+                        job.error = Some("interrupted: the server stopped during the build".into());
+                        job.finished = Some(now_rfc3339());
+                        store.put_job(&id, &serde_json::to_vec_pretty(&job).unwrap_or_default())?;
+                        tracing::warn!(job = %id, "job interrupted by a restart: marked failed");
+                    }
+                    records.insert(id, job);
+                }
+                Err(e) => tracing::warn!(job = %id, error = %e, "unreadable job record skipped"),
+            }
+        }
+        let jobs = Jobs {
+            inner: Arc::new(Inner {
+                store,
+                catalog,
+                landscape,
+                records: Mutex::new(records),
+                cancels: Mutex::new(BTreeMap::new()),
+                tx,
+            }),
+        };
+        let rx = Arc::new(Mutex::new(rx));
+        for i in 0..workers.max(1) {
+            let jobs = jobs.clone();
+            let rx = rx.clone();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads.max(1))
+                .thread_name(move |t| format!("build-{i}-{t}"))
+                .start_handler(|_| lower_priority())
+                .build()
+                .map_err(|e| ServiceError::Internal(format!("build pool: {e}")))?;
+            std::thread::Builder::new()
+                .name(format!("build-worker-{i}"))
+                .spawn(move || {
+                    lower_priority();
+                    jobs.work(&rx, &pool)
+                })
+                .map_err(|e| ServiceError::Internal(format!("build worker: {e}")))?;
+        }
+        Ok(jobs)
+    }
+
+    fn work(&self, rx: &Mutex<Receiver<String>>, pool: &rayon::ThreadPool) {
+        loop {
+            let next = lock(rx).recv();
+            let Ok(id) = next else { return };
+            let cancel = Arc::new(AtomicBool::new(false));
+            let request = {
+                let mut records = lock(&self.inner.records);
+                let Some(job) = records.get_mut(&id) else {
+                    continue;
+                };
+                if job.state != JobState::Queued {
+                    continue;
+                }
+                job.state = JobState::Running;
+                job.stage = "reading".into();
+                job.started = Some(now_rfc3339());
+                lock(&self.inner.cancels).insert(id.clone(), cancel.clone());
+                job.request.clone()
+            };
+            self.persist(&id);
+            let outcome = pool.install(|| self.run(&id, &request, &cancel));
+            lock(&self.inner.cancels).remove(&id);
+            {
+                let mut records = lock(&self.inner.records);
+                if let Some(job) = records.get_mut(&id) {
+                    job.finished = Some(now_rfc3339());
+                    match outcome {
+                        Ok(dict_id) => {
+                            job.state = JobState::Succeeded;
+                            job.progress = 1.0;
+                            job.stage = "done".into();
+                            job.result = Some(dict_id);
+                        }
+                        Err(BuildFailure::Cancelled)
+                        | Err(BuildFailure::Build(DictionaryError::Cancelled)) => {
+                            job.state = JobState::Cancelled;
+                            job.stage = "cancelled".into();
+                        }
+                        Err(e) => {
+                            job.state = JobState::Failed;
+                            job.error = Some(e.to_string());
+                        }
+                    }
+                    tracing::info!(job = %id, state = ?job.state, "dictionary job ended");
+                }
+            }
+            self.persist(&id);
+        }
+    }
+
+    fn set_progress(&self, id: &str, stage: &str, progress: f64) {
+        let changed = {
+            let mut records = lock(&self.inner.records);
+            match records.get_mut(id) {
+                Some(job) => {
+                    let changed = job.stage != stage;
+                    job.stage = stage.to_string();
+                    job.progress = progress.clamp(0.0, 1.0);
+                    changed
+                }
+                None => false,
+            }
+        };
+        if changed {
+            self.persist(id);
+        }
+    }
+
+    /// Builds and stores the dictionary of `request`; its id.
+    fn run(
+        &self,
+        id: &str,
+        request: &DictionaryRequest,
+        cancel: &AtomicBool,
+    ) -> Result<String, BuildFailure> {
+        let params = BuildFailure::Invalid;
+        let landscape = species_landscape(&self.inner.landscape, request.species.as_deref())
+            .map_err(|e| params(e.to_string()))?;
+        let mut exemplars: Vec<Exemplar> = Vec::new();
+        for (i, ex_id) in request.exemplars.iter().enumerate() {
+            let payload = self
+                .inner
+                .store
+                .get_object(ObjectKind::Exemplar, ex_id)
+                .map_err(BuildFailure::Store)?
+                .ok_or_else(|| params(format!("exemplar {ex_id} is gone")))?;
+            let (_, raster) = exemplar::decode(&payload).map_err(BuildFailure::Store)?;
+            let grid = raster
+                .elevation()
+                .ok_or_else(|| params(format!("exemplar {ex_id} has no elevation")))?;
+            let mut extra = Vec::new();
+            for (name, data) in raster.layers.iter().skip(1) {
+                let g = terrasynth_core::raster::Grid {
+                    data: data.clone(),
+                    georef: raster.georef,
+                    valid: raster.valid.clone(),
+                };
+                let filled = g
+                    .filled()
+                    .map_err(|e| params(format!("layer {name}: {e}")))?;
+                extra.push((name.clone(), filled, LayerKind::Continuous));
+            }
+            // An uploaded layer named after a species is that species' vegetation: it replaces
+            // the niche model's.
+            let uploaded: Vec<String> = extra.iter().map(|(n, _, _)| n.clone()).collect();
+            let options = ExemplarOptions {
+                extra,
+                exclude: Vec::new(),
+                derive: true,
+            };
+            let ex = Exemplar::from_grid(&grid, options, |filled, cells| {
+                let mut species = exemplar_vegetation(&landscape, filled, cells);
+                species.retain(|(n, _, _)| !uploaded.contains(n));
+                species
+            })?;
+            exemplars.push(ex);
+            if cancel.load(Ordering::Relaxed) {
+                return Err(BuildFailure::Cancelled);
+            }
+            let n = request.exemplars.len() as f64;
+            self.set_progress(id, "reading", 0.1 * (i as f64 + 1.0) / n);
+        }
+        let opts = build_options(request).map_err(|e| params(e.to_string()))?;
+        let mut last = std::time::Instant::now();
+        let d = build_cancellable(&exemplars, &opts, cancel, &mut |stage, f| {
+            let p = match stage {
+                "patches" => 0.1 + 0.3 * f,
+                "learning" => 0.4 + 0.55 * f,
+                _ => 0.95,
+            };
+            // Progress goes to memory at most every 100 ms (and to disk on stage changes).
+            if last.elapsed().as_millis() >= 100 || f >= 1.0 {
+                last = std::time::Instant::now();
+                self.set_progress(id, stage, p);
+            }
+        })?;
+        if let Some(w) = &request.weights {
+            let weights = crate::worlds::match_weights(w);
+            terrasynth_core::dictionary::matching::ResolvedWeights::resolve(&weights, &d)
+                .map_err(|e| params(e.to_string()))?;
+        }
+        self.set_progress(id, "storing", 0.97);
+        if cancel.load(Ordering::Relaxed) {
+            return Err(BuildFailure::Cancelled);
+        }
+        let dict_id = self
+            .inner
+            .catalog
+            .add_dictionary(&self.inner.store, &request.name, d)
+            .map_err(BuildFailure::Store)?;
+        Ok(dict_id)
+    }
+
+    fn persist(&self, id: &str) {
+        let json = lock(&self.inner.records)
+            .get(id)
+            .and_then(|j| serde_json::to_vec_pretty(j).ok());
+        if let Some(json) = json {
+            if let Err(e) = self.inner.store.put_job(id, &json) {
+                tracing::error!(job = %id, error = %e, "cannot write the job record");
+            }
+        }
+    }
+
+    /// Queues a build; the job id. 503 when the queue is full.
+    pub fn submit(&self, request: DictionaryRequest) -> Result<Job, ServiceError> {
+        let id = new_id(&request.name);
+        let job = Job {
+            id: id.clone(),
+            kind: "dictionary".into(),
+            state: JobState::Queued,
+            progress: 0.0,
+            stage: "queued".into(),
+            error: None,
+            result: None,
+            created: now_rfc3339(),
+            started: None,
+            finished: None,
+            request,
+        };
+        lock(&self.inner.records).insert(id.clone(), job.clone());
+        match self.inner.tx.try_send(id.clone()) {
+            Ok(()) => {
+                self.persist(&id);
+                Ok(job)
+            }
+            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
+                lock(&self.inner.records).remove(&id);
+                Err(ServiceError::QueueFull)
+            }
+        }
+    }
+
+    /// Every job, oldest first.
+    pub fn list(&self) -> Vec<Job> {
+        let mut v: Vec<Job> = lock(&self.inner.records).values().cloned().collect();
+        v.sort_by(|a, b| (&a.created, &a.id).cmp(&(&b.created, &b.id)));
+        v
+    }
+
+    /// Job `id`.
+    pub fn get(&self, id: &str) -> Option<Job> {
+        lock(&self.inner.records).get(id).cloned()
+    }
+
+    /// Cancels a queued or running job: 404 unknown, 409 already finished.
+    pub fn cancel(&self, id: &str) -> Result<Job, ServiceError> {
+        let job = {
+            let mut records = lock(&self.inner.records);
+            let job = records
+                .get_mut(id)
+                .ok_or_else(|| ServiceError::NotFound(format!("no job `{id}`")))?;
+            match job.state {
+                JobState::Queued => {
+                    job.state = JobState::Cancelled;
+                    job.stage = "cancelled".into();
+                    job.finished = Some(now_rfc3339());
+                }
+                JobState::Running => {
+                    if let Some(flag) = lock(&self.inner.cancels).get(id) {
+                        flag.store(true, Ordering::Relaxed);
+                    }
+                }
+                s => {
+                    return Err(ServiceError::Conflict(format!(
+                        "job `{id}` has already ended ({s:?})"
+                    )))
+                }
+            }
+            job.clone()
+        };
+        self.persist(id);
+        Ok(job)
+    }
+
+    /// Whether a queued or running job uses exemplar `id`.
+    pub fn uses_exemplar(&self, id: &str) -> bool {
+        lock(&self.inner.records)
+            .values()
+            .any(|j| j.state.is_active() && j.request.exemplars.iter().any(|e| e == id))
+    }
+}
+
+/// The build options of a request (defaults for absent fields), validated.
+pub fn build_options(r: &DictionaryRequest) -> Result<BuildOptions, ServiceError> {
+    let d = BuildOptions::default();
+    let learning = match &r.learning {
+        None => d.learning,
+        Some(s) => s.parse::<Learning>().map_err(ServiceError::Invalid)?,
+    };
+    let opts = BuildOptions {
+        patch: r.patch.unwrap_or(d.patch),
+        stride: r.stride.unwrap_or(d.stride),
+        atoms: r.atoms.unwrap_or(d.atoms),
+        learning,
+        seed: r.seed.unwrap_or(d.seed),
+    };
+    if opts.patch < 4 || opts.patch > 64 || opts.patch % 4 != 0 {
+        return Err(ServiceError::Invalid(format!(
+            "patch {} must be a multiple of 4 between 4 and 64",
+            opts.patch
+        )));
+    }
+    if opts.stride == 0 || opts.stride > 1024 {
+        return Err(ServiceError::Invalid(format!(
+            "stride {} must lie between 1 and 1024",
+            opts.stride
+        )));
+    }
+    if opts.atoms > 65536 {
+        return Err(ServiceError::Invalid(format!(
+            "atoms {} exceeds 65536",
+            opts.atoms
+        )));
+    }
+    if let Learning::Medoids { iterations } = opts.learning {
+        if iterations > 100 {
+            return Err(ServiceError::Invalid("at most 100 learning rounds".into()));
+        }
+    }
+    if let Some(w) = &r.weights {
+        if w.values().any(|v| !v.is_finite() || *v < 0.0) || w.values().all(|v| *v == 0.0) {
+            return Err(ServiceError::Invalid(
+                "weights must be finite, non-negative and not all zero".into(),
+            ));
+        }
+    }
+    if let Some(species) = &r.species {
+        species_landscape(&LandscapeConfig::default(), Some(species))?;
+    }
+    Ok(opts)
+}
+
+/// The landscape whose species layers a build derives: `base`'s species and seeding simulation,
+/// or `species` (when given) with `base`'s seeding simulation; validated. Materials play no part
+/// in a dictionary, so the default ones stand in.
+fn species_landscape(
+    base: &LandscapeConfig,
+    species: Option<&[Species]>,
+) -> Result<LandscapeConfig, ServiceError> {
+    let l = LandscapeConfig {
+        species: species.map_or_else(|| base.species.clone(), <[Species]>::to_vec),
+        clustering: base.clustering.clone(),
+        ..LandscapeConfig::default()
+    };
+    l.validate()
+        .map_err(|e| ServiceError::Invalid(format!("species: {e}")))?;
+    Ok(l)
+}
+
+/// A fresh job id: 16 hex digits of SHA-256 over the clock, the process and a counter.
+fn new_id(salt: &str) -> String {
+    use sha2::{Digest, Sha256};
+    static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let seq = SEQ.fetch_add(1, Ordering::Relaxed);
+    let digest = Sha256::digest(format!("{nanos}|{}|{seq}|{salt}", std::process::id()));
+    crate::object::hex(&digest[..8])
+}

@@ -1,0 +1,39 @@
+//! The on-disk store ([`store`]) and the catalogue service over it ([`service`]: the admin API's
+//! rules without HTTP — the in-memory [`catalog`], build [`jobs`], upload decoding in [`ingest`],
+//! world definitions in [`worlds`]).
+//!
+//! The store holds content-addressed, immutable objects — exemplars, dictionaries and world
+//! definitions, each named by the hex SHA-256 of its canonical bytes — human-name aliases, and
+//! job records. Every write goes to a temporary file in the same directory, is fsynced and
+//! renamed, then the directory is fsynced, so a crash never leaves a partial object under a final
+//! name. Opening the store removes leftovers of interrupted writes and verifies the checksum of
+//! every object; a corrupted object is logged and moved to `corrupt/`, so it is never served.
+//!
+//! Layout (format version [`STORE_VERSION`], written to `VERSION`):
+//!
+//! | path | content |
+//! | --- | --- |
+//! | `VERSION` | `terrasynth-store 1` |
+//! | `dictionaries/{id}.dict` | a dictionary in `dictionary::format` (its id is its checksum) |
+//! | `exemplars/{id}.obj`, `worlds/{id}.obj` | an object envelope ([`object`]): magic, kind, version, payload, SHA-256 |
+//! | `aliases/{name}` | the id an alias points at (`exemplar.N`, `dictionary.N`, `world.N`; `world-…` for configured worlds' dictionaries) |
+//! | `jobs/{id}.json` | the record of a dictionary build job (rewritten atomically) |
+//! | `corrupt/` | objects that failed verification |
+
+pub mod catalog;
+pub mod error;
+pub mod exemplar;
+pub mod ingest;
+pub mod jobs;
+pub mod object;
+pub mod service;
+pub mod store;
+pub mod time;
+pub mod worlds;
+
+pub use catalog::{Catalog, DictionaryInfo, ExemplarInfo, Statistics};
+pub use error::{ServiceError, StoreError};
+pub use jobs::{DictionaryRequest, Job, JobSettings, JobState};
+pub use service::{Catalogue, ResolvedWorld};
+pub use store::{write_atomically, ObjectKind, Store, MAX_DICTIONARY_BYTES, STORE_VERSION};
+pub use worlds::{WorldDefaults, WorldDefinition, WorldRequest};

@@ -1,0 +1,353 @@
+//! The catalogue service: the rules of the admin API without HTTP. It owns the store (opened and
+//! verified once), the in-memory [`Catalog`] and the build [`Jobs`], and decides what may be
+//! stored, built, created and deleted: an exemplar used by a queued or running build or by a
+//! stored world cannot be deleted, nor a dictionary a world uses, nor a world of the
+//! configuration; names follow the one name rule; nothing is written for a rejected request.
+//! Every method does blocking IO (fsync'd writes, deletions): call it off any async runtime.
+
+use std::collections::BTreeSet;
+use std::sync::{Arc, Mutex};
+
+use terrasynth_core::dictionary::Dictionary;
+use terrasynth_core::landscape::LandscapeConfig;
+use terrasynth_core::names::is_content_id;
+use terrasynth_core::raster::{Grid, LayeredRaster};
+
+use crate::catalog::{exemplar_info, lock, Catalog, DictionaryInfo, ExemplarInfo};
+use crate::error::{ServiceError, StoreError};
+use crate::exemplar;
+use crate::jobs::{build_options, DictionaryRequest, Job, JobSettings, Jobs};
+use crate::store::{ObjectKind, Store};
+use crate::worlds::{check_name, WorldDefaults, WorldDefinition};
+
+/// Most exemplars one build may read.
+pub const MAX_BUILD_EXEMPLARS: usize = 64;
+
+/// A world definition resolved against the store: everything needed to serve it.
+#[derive(Clone, Debug)]
+pub struct ResolvedWorld {
+    /// The definition.
+    pub definition: WorldDefinition,
+    /// The base raster's elevation.
+    pub base: Grid,
+    /// The dictionary.
+    pub dictionary: Arc<Dictionary>,
+    /// Its content id.
+    pub dictionary_id: String,
+    /// The landscape (defaults with the definition's materials and species).
+    pub landscape: LandscapeConfig,
+}
+
+/// The catalogue service.
+pub struct Catalogue {
+    store: Store,
+    catalog: Arc<Catalog>,
+    jobs: Jobs,
+    defaults: WorldDefaults,
+    /// Names of the configured worlds (read-only, and shadowing stored worlds of the same name).
+    configured: BTreeSet<String>,
+    /// Serialises the operations that check "in use" and then change the store.
+    changes: Mutex<()>,
+}
+
+impl Catalogue {
+    /// The service over an opened `store`: loads the catalogue and the job records (marking
+    /// interrupted jobs failed) and starts the build workers.
+    pub fn open(
+        store: Store,
+        jobs: JobSettings,
+        defaults: WorldDefaults,
+        configured: BTreeSet<String>,
+    ) -> Result<Catalogue, ServiceError> {
+        let catalog = Arc::new(Catalog::load(&store)?);
+        let jobs = Jobs::start(
+            store.clone(),
+            catalog.clone(),
+            Arc::new(defaults.landscape.clone()),
+            jobs,
+        )?;
+        Ok(Catalogue {
+            store,
+            catalog,
+            jobs,
+            defaults,
+            configured,
+            changes: Mutex::new(()),
+        })
+    }
+
+    /// The store.
+    pub fn store(&self) -> &Store {
+        &self.store
+    }
+
+    /// What created worlds inherit.
+    pub fn defaults(&self) -> &WorldDefaults {
+        &self.defaults
+    }
+
+    /// Stores an uploaded (decoded, checked) exemplar under alias `exemplar.{name}`.
+    pub fn put_exemplar(
+        &self,
+        name: &str,
+        raster: &LayeredRaster,
+    ) -> Result<ExemplarInfo, ServiceError> {
+        check_name("exemplar name", name)?;
+        let (header, payload) = exemplar::encode(name, raster)?;
+        let id = self.store.put_object(ObjectKind::Exemplar, &payload)?;
+        self.store.set_alias(&format!("exemplar.{name}"), &id)?;
+        let info = exemplar_info(&id, &header);
+        self.catalog.add_exemplar(&id, header);
+        tracing::info!(exemplar = %id, name = %name, "exemplar stored");
+        Ok(info)
+    }
+
+    /// Every exemplar.
+    pub fn exemplars(&self) -> Vec<ExemplarInfo> {
+        self.catalog.exemplars()
+    }
+
+    /// Exemplar `id`.
+    pub fn exemplar(&self, id: &str) -> Result<ExemplarInfo, ServiceError> {
+        self.catalog
+            .exemplar(id)
+            .map(|h| exemplar_info(id, &h))
+            .ok_or_else(|| ServiceError::NotFound(format!("no exemplar `{id}`")))
+    }
+
+    /// Deletes exemplar `id`, unless a queued or running build or a stored world uses it.
+    pub fn delete_exemplar(&self, id: &str) -> Result<(), ServiceError> {
+        let _changes = lock(&self.changes);
+        let header = self
+            .catalog
+            .exemplar(id)
+            .ok_or_else(|| ServiceError::NotFound(format!("no exemplar `{id}`")))?;
+        if self.jobs.uses_exemplar(id) {
+            return Err(ServiceError::Conflict(format!(
+                "exemplar `{id}` is used by a dictionary build"
+            )));
+        }
+        if let Some((_, def)) = self
+            .stored_worlds()?
+            .into_iter()
+            .find(|(_, d)| d.base == id)
+        {
+            return Err(ServiceError::Conflict(format!(
+                "exemplar `{id}` is the base of world `{}`",
+                def.name
+            )));
+        }
+        self.catalog.remove_exemplar(id);
+        let alias = format!("exemplar.{}", header.name);
+        if self.store.alias(&alias)?.as_deref() == Some(id) {
+            self.store.remove_alias(&alias)?;
+        }
+        self.store.delete_object(ObjectKind::Exemplar, id)?;
+        Ok(())
+    }
+
+    /// Queues a dictionary build after checking its request.
+    pub fn submit_build(&self, request: DictionaryRequest) -> Result<Job, ServiceError> {
+        check_name("dictionary name", &request.name)?;
+        if request.exemplars.is_empty() || request.exemplars.len() > MAX_BUILD_EXEMPLARS {
+            return Err(ServiceError::Invalid(format!(
+                "give 1–{MAX_BUILD_EXEMPLARS} exemplar ids"
+            )));
+        }
+        if let Some(e) = request
+            .exemplars
+            .iter()
+            .find(|e| !self.catalog.has_exemplar(e))
+        {
+            return Err(ServiceError::Invalid(format!("unknown exemplar `{e}`")));
+        }
+        build_options(&request)?;
+        let job = self.jobs.submit(request)?;
+        tracing::info!(job = %job.id, "dictionary job queued");
+        Ok(job)
+    }
+
+    /// Every job, oldest first.
+    pub fn jobs(&self) -> Vec<Job> {
+        self.jobs.list()
+    }
+
+    /// Job `id`.
+    pub fn job(&self, id: &str) -> Result<Job, ServiceError> {
+        self.jobs
+            .get(id)
+            .ok_or_else(|| ServiceError::NotFound(format!("no job `{id}`")))
+    }
+
+    /// Cancels a queued or running job.
+    pub fn cancel_job(&self, id: &str) -> Result<Job, ServiceError> {
+        self.jobs.cancel(id)
+    }
+
+    /// Every dictionary.
+    pub fn dictionaries(&self) -> Vec<DictionaryInfo> {
+        self.catalog.dictionaries()
+    }
+
+    /// Dictionary `id`.
+    pub fn dictionary(&self, id: &str) -> Result<DictionaryInfo, ServiceError> {
+        self.catalog
+            .dictionary(id)
+            .ok_or_else(|| ServiceError::NotFound(format!("no dictionary `{id}`")))
+    }
+
+    /// Deletes dictionary `id` and its aliases, unless a world uses it: `served_by` names a
+    /// served world using it (the caller knows the live worlds), stored worlds are checked here.
+    pub fn delete_dictionary(
+        &self,
+        id: &str,
+        served_by: impl Fn(&str) -> Option<String>,
+    ) -> Result<(), ServiceError> {
+        let _changes = lock(&self.changes);
+        self.dictionary(id)?;
+        let user = match served_by(id) {
+            Some(w) => Some(w),
+            None => self
+                .stored_worlds()?
+                .into_iter()
+                .find(|(_, d)| d.dictionaries.iter().any(|x| x == id))
+                .map(|(_, d)| d.name),
+        };
+        if let Some(w) = user {
+            return Err(ServiceError::Conflict(format!(
+                "dictionary `{id}` is used by world `{w}`"
+            )));
+        }
+        self.catalog.remove_dictionary(id);
+        for (alias, target) in self.store.aliases("")? {
+            if target == id {
+                self.store.remove_alias(&alias)?;
+            }
+        }
+        self.store.delete_dictionary(id)?;
+        Ok(())
+    }
+
+    /// The stored (API-created) world definitions with their ids, in alias order; unreadable
+    /// ones are left out.
+    pub fn stored_worlds(&self) -> Result<Vec<(String, WorldDefinition)>, ServiceError> {
+        let mut out = Vec::new();
+        for (_, id) in self.store.aliases("world.")? {
+            if let Some(p) = self.store.get_object(ObjectKind::World, &id)? {
+                if let Ok(def) = serde_json::from_slice::<WorldDefinition>(&p) {
+                    out.push((id, def));
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The stored world definitions to serve at start: those a configured world does not shadow
+    /// (shadowed and unreadable ones are logged and skipped).
+    pub fn worlds_to_load(&self) -> Result<Vec<(String, WorldDefinition)>, ServiceError> {
+        let mut out = Vec::new();
+        for (alias, id) in self.store.aliases("world.")? {
+            let name = alias.trim_start_matches("world.");
+            if self.configured.contains(name) {
+                tracing::warn!(world = %name, "stored world shadowed by a configured world; skipped");
+                continue;
+            }
+            match self.store.get_object(ObjectKind::World, &id) {
+                Ok(Some(p)) => match serde_json::from_slice::<WorldDefinition>(&p) {
+                    Ok(def) => out.push((id, def)),
+                    Err(e) => {
+                        tracing::warn!(world = %name, error = %e, "stored world unreadable; skipped")
+                    }
+                },
+                Ok(None) => {
+                    tracing::warn!(world = %name, "stored world definition missing; skipped")
+                }
+                Err(e) => {
+                    tracing::warn!(world = %name, error = %e, "stored world unusable; skipped")
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// Reads what definition `def` names from the store (CPU- and IO-bound).
+    pub fn resolve(&self, def: &WorldDefinition) -> Result<ResolvedWorld, ServiceError> {
+        let landscape = def.landscape(&self.defaults.landscape)?;
+        let unknown_base =
+            || ServiceError::Invalid(format!("unknown base exemplar `{}`", def.base));
+        if !is_content_id(&def.base) {
+            return Err(unknown_base());
+        }
+        let dict_id = def.dictionary()?.to_string();
+        let payload = match self.store.get_object(ObjectKind::Exemplar, &def.base) {
+            Ok(p) => p.ok_or_else(unknown_base)?,
+            Err(StoreError::BadName(_)) => return Err(unknown_base()),
+            Err(e) => return Err(e.into()),
+        };
+        let (_, raster) = exemplar::decode(&payload)?;
+        let base = raster
+            .elevation()
+            .ok_or_else(|| ServiceError::Invalid("the base has no elevation".into()))?;
+        let dictionary = self
+            .store
+            .get_dictionary(&dict_id)?
+            .ok_or_else(|| ServiceError::Invalid(format!("unknown dictionary `{dict_id}`")))?;
+        Ok(ResolvedWorld {
+            definition: def.clone(),
+            base,
+            dictionary: Arc::new(dictionary),
+            dictionary_id: dict_id,
+            landscape,
+        })
+    }
+
+    /// Creates world `def`: checks that its name is free (not configured, not `served`, not
+    /// stored), resolves it, lets `assemble` build what serves it, and stores the definition
+    /// under alias `world.{name}` — all under one lock, so two requests cannot take one name.
+    /// Returns what `assemble` built and the definition's id; nothing is stored on error.
+    pub fn create_world<W>(
+        &self,
+        def: &WorldDefinition,
+        served: impl Fn(&str) -> bool,
+        assemble: impl FnOnce(ResolvedWorld) -> Result<W, ServiceError>,
+    ) -> Result<(W, String), ServiceError> {
+        let _changes = lock(&self.changes);
+        let alias = format!("world.{}", def.name);
+        if self.configured.contains(&def.name)
+            || served(&def.name)
+            || self.store.alias(&alias)?.is_some()
+        {
+            return Err(ServiceError::Conflict(format!(
+                "world `{}` already exists",
+                def.name
+            )));
+        }
+        let built = assemble(self.resolve(def)?)?;
+        let json = serde_json::to_vec(def).map_err(|e| ServiceError::Internal(e.to_string()))?;
+        let id = self.store.put_object(ObjectKind::World, &json)?;
+        self.store.set_alias(&alias, &id)?;
+        tracing::info!(world = %def.name, id = %id, "world stored");
+        Ok((built, id))
+    }
+
+    /// Deletes the stored world `name`; configured worlds are read-only.
+    pub fn delete_world(&self, name: &str) -> Result<(), ServiceError> {
+        let _changes = lock(&self.changes);
+        if self.configured.contains(name) {
+            return Err(ServiceError::Conflict(format!(
+                "world `{name}` comes from the configuration and is read-only"
+            )));
+        }
+        let alias = format!("world.{name}");
+        let id = match self.store.alias(&alias) {
+            Ok(Some(id)) => id,
+            Ok(None) | Err(StoreError::BadName(_)) => {
+                return Err(ServiceError::NotFound(format!("unknown world `{name}`")))
+            }
+            Err(e) => return Err(e.into()),
+        };
+        self.store.remove_alias(&alias)?;
+        self.store.delete_object(ObjectKind::World, &id)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,204 @@
+//! World definitions created through the admin API: what a world is made of (a base exemplar, a
+//! dictionary, zooms, matching weights, its landscape's materials and species), the rules a
+//! request must follow, and the defaults it inherits from the default world.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use terrasynth_core::dictionary::MatchWeights;
+use terrasynth_core::landscape::{LandscapeConfig, Material, Species};
+use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
+
+use crate::error::ServiceError;
+
+/// A world created through the API, as stored (JSON in a world object).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct WorldDefinition {
+    /// URL name.
+    pub name: String,
+    /// Exemplar id of the base (the coarse DEM or sketch).
+    pub base: String,
+    /// Dictionary ids of the synthesis chain.
+    pub dictionaries: Vec<String>,
+    /// Deepest zoom served.
+    pub max_zoom: u8,
+    /// Matching weights by term or layer name.
+    pub weights: BTreeMap<String, f32>,
+    /// Materials of the splat and colour maps, in splat order, each as a world file's
+    /// `[[landscape.materials]]`; empty: the default world's.
+    #[schema(value_type = Vec<Object>)]
+    #[serde(deserialize_with = "lenient_materials")]
+    pub materials: Vec<Material>,
+    /// Vegetation species, each as a world file's `[[landscape.species]]`; absent: the default
+    /// world's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub species: Option<Vec<Species>>,
+}
+
+/// Materials of a stored definition: definitions written before materials were used held any
+/// JSON value there (kept, never read); anything but a list of materials reads as "none" (the
+/// default world's), so those worlds still load.
+fn lenient_materials<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<Material>, D::Error> {
+    let v = serde_json::Value::deserialize(d)?;
+    Ok(serde_json::from_value(v).unwrap_or_default())
+}
+
+/// `POST /admin/worlds`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WorldRequest {
+    /// URL name: 1–64 letters, digits, `-` or `_`.
+    #[schema(pattern = "^[A-Za-z0-9_-]{1,64}$")]
+    pub name: String,
+    /// Exemplar id of the base.
+    pub base: String,
+    /// Dictionary ids of the synthesis chain (currently exactly one).
+    pub dictionaries: Vec<String>,
+    /// Deepest zoom served (default: the default world's).
+    #[serde(default)]
+    pub max_zoom: Option<u8>,
+    /// Matching weights (default: the default world's).
+    #[serde(default)]
+    pub weights: Option<BTreeMap<String, f32>>,
+    /// Materials of the splat and colour maps, in splat order, each as a world file's
+    /// `[[landscape.materials]]` (`{"name", "colour", "elevation", "slope", "northness",
+    /// "curvature", "wetness", "vegetation", "spread", "spread_scale_m"}`; ranges `{"min", "max",
+    /// "falloff"}`). Default: the default world's.
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub materials: Option<Vec<Material>>,
+    /// Vegetation species, each as a world file's `[[landscape.species]]`. Default: the default
+    /// world's.
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub species: Option<Vec<Species>>,
+}
+
+/// What created worlds inherit: the default (first configured) world's settings.
+#[derive(Clone, Debug)]
+pub struct WorldDefaults {
+    /// Deepest zoom.
+    pub max_zoom: u8,
+    /// Matching weights.
+    pub weights: BTreeMap<String, f32>,
+    /// Landscape (species, seeding simulation, materials, drainage style).
+    pub landscape: LandscapeConfig,
+}
+
+/// Checks a user-given name.
+pub fn check_name(what: &str, name: &str) -> Result<(), ServiceError> {
+    if is_valid_name(name) {
+        Ok(())
+    } else {
+        Err(ServiceError::Invalid(format!(
+            "{what} `{name}` must be {NAME_RULE}"
+        )))
+    }
+}
+
+/// A name → weight map of matching weights (`elevation`, `altitude`, `slope`, then layers).
+pub fn weights_map(w: &MatchWeights) -> BTreeMap<String, f32> {
+    let mut m = BTreeMap::new();
+    m.insert("elevation".to_string(), w.elevation);
+    m.insert("altitude".to_string(), w.altitude);
+    m.insert("slope".to_string(), w.slope);
+    for (k, v) in &w.layers {
+        m.insert(k.clone(), *v);
+    }
+    m
+}
+
+/// Matching weights from a name → weight map (`elevation`, `altitude`, `slope`, else layers;
+/// absent terms are 0).
+pub fn match_weights(w: &BTreeMap<String, f32>) -> MatchWeights {
+    let mut m = MatchWeights {
+        elevation: 0.0,
+        altitude: 0.0,
+        slope: 0.0,
+        layers: Vec::new(),
+    };
+    for (k, &v) in w {
+        match k.as_str() {
+            "elevation" => m.elevation = v,
+            "altitude" => m.altitude = v,
+            "slope" => m.slope = v,
+            _ => m.layers.push((k.clone(), v)),
+        }
+    }
+    m
+}
+
+impl WorldDefinition {
+    /// The definition a request asks for, with defaults filled in and the rules that need no
+    /// store checked: the name, finite non-negative weights, a valid landscape. The base and
+    /// dictionary are checked when the definition is resolved against the store.
+    pub fn from_request(r: WorldRequest, d: &WorldDefaults) -> Result<Self, ServiceError> {
+        check_name("world name", &r.name)?;
+        let def = WorldDefinition {
+            name: r.name,
+            base: r.base,
+            dictionaries: r.dictionaries,
+            max_zoom: r.max_zoom.unwrap_or(d.max_zoom),
+            weights: r.weights.unwrap_or_else(|| d.weights.clone()),
+            materials: r.materials.unwrap_or_default(),
+            species: r.species,
+        };
+        if def.weights.values().any(|v| !v.is_finite() || *v < 0.0) {
+            return Err(ServiceError::Invalid(
+                "weights must be finite and non-negative".into(),
+            ));
+        }
+        def.landscape(&d.landscape)?;
+        Ok(def)
+    }
+
+    /// The one dictionary of the synthesis chain.
+    pub fn dictionary(&self) -> Result<&str, ServiceError> {
+        match self.dictionaries.as_slice() {
+            [id] if is_content_id(id) => Ok(id),
+            [id] => Err(ServiceError::Invalid(format!("unknown dictionary `{id}`"))),
+            other => Err(ServiceError::Invalid(format!(
+                "a world takes exactly one dictionary for now ({} given)",
+                other.len()
+            ))),
+        }
+    }
+
+    /// The world's landscape: `defaults` with this definition's materials (when any) and
+    /// species (when given), validated.
+    pub fn landscape(&self, defaults: &LandscapeConfig) -> Result<LandscapeConfig, ServiceError> {
+        let mut l = defaults.clone();
+        if !self.materials.is_empty() {
+            l.materials = self.materials.clone();
+            // A fallback named by the defaults may not exist among the new materials.
+            if l.fallback_material
+                .as_ref()
+                .is_some_and(|f| !l.materials.iter().any(|m| &m.name == f))
+            {
+                l.fallback_material = None;
+            }
+        }
+        if let Some(species) = &self.species {
+            l.species = species.clone();
+            if self.materials.is_empty() {
+                // The default materials may weigh the default species: those terms go with
+                // them (a material of one's own must name only the world's species).
+                for m in &mut l.materials {
+                    m.vegetation
+                        .retain(|name, _| species.iter().any(|s| &s.name == name));
+                }
+            }
+        }
+        l.validate()
+            .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+        Ok(l)
+    }
+
+    /// The matching weights.
+    pub fn match_weights(&self) -> MatchWeights {
+        match_weights(&self.weights)
+    }
+}

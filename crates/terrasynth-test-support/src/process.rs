@@ -1,0 +1,127 @@
+//! A `terrasynth serve` process on a free port for end-to-end tests, killed (SIGKILL) on drop, and
+//! small HTTP helpers over ureq.
+
+use std::io::Read;
+use std::net::TcpListener;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A server process, killed on drop.
+pub struct Server {
+    /// The child process.
+    pub child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    /// `127.0.0.1:PORT`.
+    pub addr: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Server {
+    /// Kills the process with SIGKILL and waits for it.
+    pub fn kill(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A free TCP port on 127.0.0.1.
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// Starts `bin serve` (the `terrasynth` binary) in directory `cwd` with extra `args` and
+/// environment `env`, its store in `store`, and waits for `/healthz`.
+pub fn start_binary(
+    bin: &Path,
+    cwd: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+    store: &Path,
+) -> Server {
+    let port = free_port();
+    let addr = format!("127.0.0.1:{port}");
+    let mut cmd = Command::new(bin);
+    cmd.arg("serve")
+        .args(args)
+        .args(["--listen", &addr])
+        .env("TERRASYNTH_STORE_DIR", store)
+        .env("TERRASYNTH_CACHE_MB", "64")
+        .current_dir(cwd)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let child = cmd.spawn().expect("start terrasynth serve");
+    let server = Server {
+        child,
+        base: format!("http://{addr}"),
+        addr,
+    };
+    let deadline = Instant::now() + Duration::from_secs(240);
+    loop {
+        if let Ok(r) = ureq::get(&format!("{}/healthz", server.base)).call() {
+            if r.status() == 200 {
+                return server;
+            }
+        }
+        assert!(Instant::now() < deadline, "server did not become healthy");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn finish(resp: Result<ureq::http::Response<ureq::Body>, ureq::Error>) -> (u16, Vec<u8>) {
+    let resp = resp.expect("request");
+    let status = resp.status().as_u16();
+    let mut body = Vec::new();
+    resp.into_body()
+        .into_reader()
+        .read_to_end(&mut body)
+        .expect("body");
+    (status, body)
+}
+
+/// `GET path` with an optional bearer token.
+pub fn get(server: &Server, path: &str, token: Option<&str>) -> (u16, Vec<u8>) {
+    let mut r = ureq::get(&format!("{}{path}", server.base))
+        .config()
+        .http_status_as_error(false)
+        .build();
+    if let Some(t) = token {
+        r = r.header("Authorization", &format!("Bearer {t}"));
+    }
+    finish(r.call())
+}
+
+/// `POST path` with a body of `content_type` and a bearer token.
+pub fn post(
+    server: &Server,
+    path: &str,
+    token: &str,
+    content_type: &str,
+    body: &[u8],
+) -> (u16, Vec<u8>) {
+    let r = ureq::post(&format!("{}{path}", server.base))
+        .config()
+        .http_status_as_error(false)
+        .build()
+        .header("Authorization", &format!("Bearer {token}"))
+        .header("Content-Type", content_type);
+    finish(r.send(body))
+}
+
+/// The JSON of a body.
+pub fn json(body: &[u8]) -> serde_json::Value {
+    serde_json::from_slice(body).unwrap_or(serde_json::Value::Null)
+}

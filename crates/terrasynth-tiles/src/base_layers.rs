@@ -1,0 +1,112 @@
+//! Whole-world layers at the native zoom: priority-flood filling and D8 flow accumulation of the
+//! whole base (upstream area in m²), and the niche model with the seeding simulation for
+//! vegetation. Drainage is global by nature, so it is computed once per world on a fixed window
+//! of the native zoom's plane ([`crate::extent::Extent::world_window`]); the native-zoom tiles of
+//! drainage and vegetation are cut out of it.
+
+use std::sync::{Arc, OnceLock};
+
+use ndarray::{s, Array2};
+
+use terrasynth_core::analysis;
+use terrasynth_core::landscape::{vegetation, LandscapeConfig};
+use terrasynth_core::synth::Window;
+
+use crate::elevation::ElevationLevels;
+use crate::error::TileError;
+
+/// Largest whole-world window, pixels.
+const MAX_WORLD_PIXELS: usize = 1 << 26;
+
+/// Whole-world layers at the native zoom.
+#[derive(Debug)]
+pub struct BaseLayers {
+    /// The window of the native zoom's plane they cover.
+    pub window: Window,
+    /// D8 upstream area, m².
+    pub area: Array2<f32>,
+    /// Vegetation densities, one grid per species.
+    pub vegetation: Vec<Array2<f32>>,
+}
+
+/// Bytes the whole-world layers over `window` hold: the upstream area and one grid per species,
+/// f32 each.
+pub fn base_layer_bytes(window: Window, species: usize) -> u64 {
+    (window.len() as u64).saturating_mul(4 * (1 + species as u64))
+}
+
+/// Copies the part of `a` (held over `aw`) that lies in `w` into a `w`-shaped grid, `fill`
+/// elsewhere.
+pub fn cut(a: &Array2<f32>, aw: Window, w: Window, fill: f32) -> Array2<f32> {
+    let mut out = Array2::from_elem((w.rows, w.cols), fill);
+    let c0 = w.col0.max(aw.col0);
+    let c1 = w.col1().min(aw.col1());
+    let r0 = w.row0.max(aw.row0);
+    let r1 = w.row1().min(aw.row1());
+    if c0 < c1 && r0 < r1 {
+        out.slice_mut(s![
+            (r0 - w.row0) as usize..(r1 - w.row0) as usize,
+            (c0 - w.col0) as usize..(c1 - w.col0) as usize
+        ])
+        .assign(&a.slice(s![
+            (r0 - aw.row0) as usize..(r1 - aw.row0) as usize,
+            (c0 - aw.col0) as usize..(c1 - aw.col0) as usize
+        ]));
+    }
+    out
+}
+
+/// The whole-world layers of a world, computed once on first use (or ahead of time by
+/// a background thread at start); concurrent users wait for the same computation.
+#[derive(Debug)]
+pub struct WholeWorld {
+    landscape: Arc<LandscapeConfig>,
+    layers: OnceLock<Result<Arc<BaseLayers>, TileError>>,
+}
+
+impl WholeWorld {
+    /// The whole-world layers of a world with this landscape, not computed yet.
+    pub fn new(landscape: Arc<LandscapeConfig>) -> Self {
+        WholeWorld {
+            landscape,
+            layers: OnceLock::new(),
+        }
+    }
+
+    /// The layers, computing them on first use.
+    pub fn get(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
+        self.layers
+            .get_or_init(|| compute(elevation, &self.landscape).map(Arc::new))
+            .clone()
+    }
+}
+
+fn compute(
+    elevation: &ElevationLevels,
+    landscape: &LandscapeConfig,
+) -> Result<BaseLayers, TileError> {
+    let extent = elevation.extent();
+    let z = extent.z_base;
+    let window = extent.world_window(z);
+    if window.len() > MAX_WORLD_PIXELS {
+        return Err(TileError::WorldTooLarge(window));
+    }
+    let heights = elevation.window(z, window)?;
+    let cells = extent.cell_sizes(z, window.row0, window.rows);
+    let area64 = analysis::flow_accumulation_d8(&analysis::priority_flood_fill(&heights), &cells);
+    let wet = analysis::log_upstream_area(&area64);
+    let area = area64.mapv(|v| v as f32);
+    drop(area64);
+    let vegetation = vegetation::densities(
+        landscape,
+        &heights,
+        &cells,
+        &wet,
+        (window.row0, window.col0),
+    );
+    Ok(BaseLayers {
+        window,
+        area,
+        vegetation,
+    })
+}

@@ -1,0 +1,186 @@
+//! The drainage pyramid: upstream area in m² at every zoom.
+//!
+//! - **Native zoom `z_b`**: cut from the whole-world D8 accumulation ([`crate::base_layers`]).
+//! - **Amplified zooms**: D8 on the amplified surface over the tile plus a [`DRAIN_HALO`]-pixel
+//!   halo (priority-flood filled), with sources = cell areas plus the parent level's upstream area
+//!   injected where parent flow enters the region: every parent pixel of the ring around the
+//!   region whose steepest descent points into it hands its area to the lowest child of the
+//!   pixel it drains into. The region is a function of the tile's global coordinates only, so a
+//!   drainage value is a pure function of `(z, x, y)`: a tile alone equals the same window of any
+//!   larger assembled region, and the halo keeps routing identical near tile borders.
+//! - **Overviews** (`z < z_b`): the maximum of the 2×2 children (the upstream area of the coarse
+//!   pixel's main channel).
+
+use std::sync::Arc;
+
+use ndarray::{s, Array2};
+
+use terrasynth_core::analysis::{self, D8_OFFSETS};
+use terrasynth_core::synth::Window;
+
+use crate::base_layers::{cut, WholeWorld};
+use crate::elevation::ElevationLevels;
+use crate::error::TileError;
+use crate::pyramid::{assemble, overview, tile_window, LevelCache};
+
+/// Halo (pixels, even) of the local drainage routing around an amplified tile.
+pub const DRAIN_HALO: i64 = 128;
+
+/// The drainage levels of a world.
+#[derive(Debug)]
+pub struct DrainageLevels {
+    cache: LevelCache<Array2<f32>>,
+}
+
+fn max4(v: [f32; 4]) -> f32 {
+    v[0].max(v[1]).max(v[2]).max(v[3])
+}
+
+impl DrainageLevels {
+    /// Drainage levels cached in at most `cache_bytes` bytes.
+    pub fn new(cache_bytes: u64) -> Self {
+        DrainageLevels {
+            cache: LevelCache::new(cache_bytes),
+        }
+    }
+
+    /// The cache of level tiles.
+    pub fn cache(&self) -> &LevelCache<Array2<f32>> {
+        &self.cache
+    }
+
+    /// The drainage level tile `(z, tx, ty)`, computed once.
+    pub fn tile(
+        &self,
+        elevation: &ElevationLevels,
+        whole: &WholeWorld,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<Arc<Array2<f32>>, TileError> {
+        self.cache
+            .get_or_compute((z, tx, ty), || self.compute(elevation, whole, z, tx, ty))
+    }
+
+    /// Drainage over window `w` of zoom `z`, assembled from tiles.
+    pub fn window(
+        &self,
+        elevation: &ElevationLevels,
+        whole: &WholeWorld,
+        z: u8,
+        w: Window,
+    ) -> Result<Array2<f32>, TileError> {
+        assemble(w, 1, |tx, ty| self.tile(elevation, whole, z, tx, ty))
+    }
+
+    fn compute(
+        &self,
+        elevation: &ElevationLevels,
+        whole: &WholeWorld,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<Array2<f32>, TileError> {
+        let w = tile_window(tx, ty);
+        let extent = elevation.extent();
+        let zb = extent.z_base;
+        if z == zb {
+            let base = whole.get(elevation)?;
+            return Ok(cut(&base.area, base.window, w, 0.0));
+        }
+        if z < zb {
+            return overview(tx, ty, 1, 0.0, max4, |cx, cy| {
+                if extent.tile_outside(z + 1, cx, cy) {
+                    return Ok(None);
+                }
+                self.tile(elevation, whole, z + 1, cx, cy).map(Some)
+            });
+        }
+        // The routing region: the tile plus an even halo, so that it maps onto whole parent
+        // pixels.
+        let h = DRAIN_HALO;
+        let region = Window::new(
+            w.col0 - h,
+            w.row0 - h,
+            w.cols + 2 * h as usize,
+            w.rows + 2 * h as usize,
+        );
+        let heights = elevation.window(z, region)?;
+        let cells = extent.cell_sizes(z, region.row0, region.rows);
+        let filled = analysis::priority_flood_fill(&heights);
+        let receivers = analysis::d8_receivers(&filled, &cells);
+        let mut sources = Array2::from_shape_fn(heights.dim(), |(r, _)| cells.area(r));
+        // Parent inflow: parent pixels on the ring around the region's parent window whose
+        // steepest descent points into it.
+        let pw = Window::new(
+            region.col0 / 2,
+            region.row0 / 2,
+            region.cols / 2,
+            region.rows / 2,
+        );
+        let ew = Window::new(pw.col0 - 2, pw.row0 - 2, pw.cols + 4, pw.rows + 4);
+        let pe = elevation.window(z - 1, ew)?;
+        let aw = Window::new(pw.col0 - 1, pw.row0 - 1, pw.cols + 2, pw.rows + 2);
+        let pa = self.window(elevation, whole, z - 1, aw)?;
+        let pcells = extent.cell_sizes(z - 1, ew.row0, ew.rows);
+        for (qr, qc) in ring(aw) {
+            // (qr, qc) are global parent coordinates on the ring.
+            let er = (qr - ew.row0) as usize;
+            let ec = (qc - ew.col0) as usize;
+            let zq = f64::from(pe[[er, ec]]);
+            let (dx, dy) = (pcells.dx[er], pcells.dy[er]);
+            let mut best = 0.0f64;
+            let mut target = None;
+            for &(dr, dc) in &D8_OFFSETS {
+                let (nr, nc) = (er as isize + dr, ec as isize + dc);
+                let dist = match (dr != 0, dc != 0) {
+                    (true, true) => dx.hypot(dy),
+                    (true, false) => dy,
+                    _ => dx,
+                };
+                let drop = zq - f64::from(pe[[nr as usize, nc as usize]]);
+                if drop > 0.0 && drop / dist > best {
+                    best = drop / dist;
+                    target = Some((qr + dr as i64, qc + dc as i64));
+                }
+            }
+            let Some((trow, tcol)) = target else { continue };
+            if trow < pw.row0 || trow >= pw.row1() || tcol < pw.col0 || tcol >= pw.col1() {
+                continue;
+            }
+            let inflow = f64::from(pa[[(qr - aw.row0) as usize, (qc - aw.col0) as usize]]);
+            // The lowest of the target's four children (ties: row-major first).
+            let (cr, cc) = (
+                (2 * trow - region.row0) as usize,
+                (2 * tcol - region.col0) as usize,
+            );
+            let mut low = (cr, cc);
+            for (r, c) in [(cr, cc + 1), (cr + 1, cc), (cr + 1, cc + 1)] {
+                if heights[[r, c]] < heights[low] {
+                    low = (r, c);
+                }
+            }
+            sources[low] += inflow;
+        }
+        let area = analysis::accumulate_sources(&receivers, &sources);
+        let hs = h as usize;
+        Ok(area
+            .slice(s![hs..hs + w.rows, hs..hs + w.cols])
+            .mapv(|v| v as f32))
+    }
+}
+
+/// The global coordinates `(row, col)` of the one-pixel ring just inside window `w`'s edge, in
+/// row-major order.
+fn ring(w: Window) -> Vec<(i64, i64)> {
+    let mut out = Vec::new();
+    for r in w.row0..w.row1() {
+        if r == w.row0 || r == w.row1() - 1 {
+            out.extend((w.col0..w.col1()).map(|c| (r, c)));
+        } else {
+            out.push((r, w.col0));
+            out.push((r, w.col1() - 1));
+        }
+    }
+    out
+}

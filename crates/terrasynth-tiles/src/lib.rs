@@ -1,0 +1,47 @@
+//! terrasynth's tiles: everything between the numeric pipeline and the sockets. Web Mercator XYZ
+//! math ([`mercator`]), a world's place on the planes ([`extent`]), resampling a georeferenced
+//! grid onto a zoom's plane ([`resample`]), the one level pyramid every layer uses ([`pyramid`]:
+//! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
+//! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
+//! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
+//! ([`world`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
+//! TileJSON ([`tilejson`]) and styles ([`style`]).
+//!
+//! Everything here is deterministic: the bytes of a tile depend only on the world and the
+//! request, never on the clock, a global RNG, thread count, CPU features or cache state. No
+//! sockets and no HTTP types: the server translates HTTP into these calls.
+
+pub mod base_layers;
+pub mod drainage;
+pub mod elevation;
+pub mod encode;
+pub mod error;
+pub mod extent;
+pub mod materials;
+pub mod mercator;
+pub mod pyramid;
+pub mod render;
+pub mod request;
+pub mod resample;
+pub mod style;
+pub mod terrain;
+pub mod tilejson;
+pub mod vegetation;
+pub mod world;
+
+pub use encode::{
+    decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
+    encode_mapbox_png, encode_rgba_png, encode_terrarium_png, NAN_FILL_HEIGHT_M,
+};
+pub use error::TileError;
+pub use extent::Extent;
+pub use mercator::{
+    ground_cell_m, lonlat_to_global_pixel, lonlat_to_mercator, mercator_to_lonlat, native_zoom,
+    pixel_size_m, plane_cell_sizes, tile_bounds_lonlat, tile_range_for_bounds, validate_tile,
+    MAX_LATITUDE, MAX_SUPPORTED_ZOOM, TILE_SIZE,
+};
+pub use render::render;
+pub use request::{check_against_world, etag, parse_request, RequestError, TileKind, TileRequest};
+pub use resample::mercator_window_from_grid;
+pub use tilejson::{TerrainEncoding, TileJson, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
+pub use world::{World, WorldParts, WorldStats};

@@ -1,0 +1,297 @@
+//! The one level pyramid every layer uses: level tiles cached per `(zoom, column, row)` and
+//! computed once even under concurrent requests ([`LevelCache`]), windows of a zoom's pixel plane
+//! assembled from those tiles ([`assemble`]), and overview tiles reduced from their four children
+//! ([`overview`]).
+//!
+//! A layer's tile is a stack of `f32` planes (one for elevation and drainage, one per species for
+//! vegetation): [`LevelTile`] is implemented for `Array2<f32>` and `Vec<Array2<f32>>`, and every
+//! cache entry is weighed in bytes so that the caches of all layers share one memory budget.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use moka::sync::Cache;
+use ndarray::{s, Array2};
+
+use terrasynth_core::raster::reduce2x2;
+use terrasynth_core::synth::Window;
+
+use crate::error::TileError;
+use crate::mercator::TILE_SIZE;
+
+/// Tile side in pixels, as a signed global coordinate.
+pub const T: i64 = TILE_SIZE as i64;
+
+/// A level tile's key: `(zoom, column, row)`. Columns and rows may lie outside `[0, 2^z)`: a
+/// zoom's plane is defined everywhere (fill outside the world).
+pub type TileKey = (u8, i64, i64);
+
+/// Bytes of bookkeeping charged per cached plane on top of its values.
+const PLANE_OVERHEAD: u64 = 64;
+
+/// The window of tile `(tx, ty)` on its zoom's plane.
+pub fn tile_window(tx: i64, ty: i64) -> Window {
+    Window::new(tx * T, ty * T, TILE_SIZE as usize, TILE_SIZE as usize)
+}
+
+/// The values a layer holds for one tile: one or more `f32` planes of the same shape.
+pub trait LevelTile: Send + Sync + 'static {
+    /// Number of planes.
+    fn planes(&self) -> usize;
+    /// Plane `k`.
+    fn plane(&self, k: usize) -> &Array2<f32>;
+    /// A tile from its planes (exactly [`LevelTile::planes`] of them for single-plane types).
+    fn from_planes(planes: Vec<Array2<f32>>) -> Self;
+    /// Bytes the tile holds in a cache.
+    fn bytes(&self) -> u64 {
+        (0..self.planes())
+            .map(|k| self.plane(k).len() as u64 * 4 + PLANE_OVERHEAD)
+            .sum::<u64>()
+            .max(PLANE_OVERHEAD)
+    }
+}
+
+impl LevelTile for Array2<f32> {
+    fn planes(&self) -> usize {
+        1
+    }
+    fn plane(&self, _: usize) -> &Array2<f32> {
+        self
+    }
+    fn from_planes(planes: Vec<Array2<f32>>) -> Self {
+        planes
+            .into_iter()
+            .next()
+            .unwrap_or_else(|| Array2::zeros((0, 0)))
+    }
+}
+
+impl LevelTile for Vec<Array2<f32>> {
+    fn planes(&self) -> usize {
+        self.len()
+    }
+    fn plane(&self, k: usize) -> &Array2<f32> {
+        &self[k]
+    }
+    fn from_planes(planes: Vec<Array2<f32>>) -> Self {
+        planes
+    }
+}
+
+/// Hit and miss counters of a [`LevelCache`].
+#[derive(Debug, Default)]
+pub struct CacheStats {
+    /// Tiles served from the cache.
+    pub hits: AtomicU64,
+    /// Tiles that had to be computed.
+    pub misses: AtomicU64,
+}
+
+/// The level tiles of one layer of one world, weighed in bytes.
+pub struct LevelCache<T: LevelTile> {
+    cache: Cache<TileKey, Arc<T>>,
+    stats: CacheStats,
+}
+
+impl<T: LevelTile> std::fmt::Debug for LevelCache<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LevelCache")
+            .field("entries", &self.cache.entry_count())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<T: LevelTile> LevelCache<T> {
+    /// A cache holding at most `capacity_bytes` bytes of tiles.
+    pub fn new(capacity_bytes: u64) -> Self {
+        LevelCache {
+            cache: Cache::builder()
+                .weigher(|_, v: &Arc<T>| u32::try_from(v.bytes()).unwrap_or(u32::MAX))
+                .max_capacity(capacity_bytes)
+                .build(),
+            stats: CacheStats::default(),
+        }
+    }
+
+    /// Tile `key` from the cache, or computed by `compute` (once, even when several threads ask
+    /// for it at the same time; the others wait for that computation).
+    pub fn get_or_compute(
+        &self,
+        key: TileKey,
+        compute: impl FnOnce() -> Result<T, TileError>,
+    ) -> Result<Arc<T>, TileError> {
+        if let Some(t) = self.cache.get(&key) {
+            self.stats.hits.fetch_add(1, Ordering::Relaxed);
+            return Ok(t);
+        }
+        self.cache
+            .try_get_with(key, || {
+                self.stats.misses.fetch_add(1, Ordering::Relaxed);
+                compute().map(Arc::new)
+            })
+            .map_err(|e: Arc<TileError>| (*e).clone())
+    }
+
+    /// Bytes currently held.
+    pub fn weighted_size(&self) -> u64 {
+        self.cache.run_pending_tasks();
+        self.cache.weighted_size()
+    }
+
+    /// The hit and miss counters.
+    pub fn stats(&self) -> &CacheStats {
+        &self.stats
+    }
+}
+
+/// Row and column ranges of a tile part: `(rows, cols)`.
+pub type Part = (Range<usize>, Range<usize>);
+
+/// Calls `f(tx, ty, src, dst)` for every tile `(tx, ty)` meeting window `w` of a zoom's pixel
+/// plane, with the ranges of the intersection inside the tile (`src`) and inside `w` (`dst`), in
+/// row-major tile order.
+pub fn for_each_tile_part(
+    w: Window,
+    mut f: impl FnMut(i64, i64, Part, Part) -> Result<(), TileError>,
+) -> Result<(), TileError> {
+    if w.is_empty() {
+        return Ok(());
+    }
+    let tx0 = w.col0.div_euclid(T);
+    let tx1 = (w.col1() - 1).div_euclid(T);
+    let ty0 = w.row0.div_euclid(T);
+    let ty1 = (w.row1() - 1).div_euclid(T);
+    for ty in ty0..=ty1 {
+        for tx in tx0..=tx1 {
+            // Intersection of the tile with the window, in global pixels.
+            let c0 = (tx * T).max(w.col0);
+            let c1 = (tx * T + T).min(w.col1());
+            let r0 = (ty * T).max(w.row0);
+            let r1 = (ty * T + T).min(w.row1());
+            let src = (
+                (r0 - ty * T) as usize..(r1 - ty * T) as usize,
+                (c0 - tx * T) as usize..(c1 - tx * T) as usize,
+            );
+            let dst = (
+                (r0 - w.row0) as usize..(r1 - w.row0) as usize,
+                (c0 - w.col0) as usize..(c1 - w.col0) as usize,
+            );
+            f(tx, ty, src, dst)?;
+        }
+    }
+    Ok(())
+}
+
+/// Window `w` of a zoom's plane with `planes` planes, copied from the tiles `tile(tx, ty)`
+/// returns. Because tiles are windows of one plane, the result does not depend on which tiles
+/// were cached before.
+pub fn assemble<T: LevelTile>(
+    w: Window,
+    planes: usize,
+    mut tile: impl FnMut(i64, i64) -> Result<Arc<T>, TileError>,
+) -> Result<T, TileError> {
+    let mut out: Vec<Array2<f32>> = (0..planes)
+        .map(|_| Array2::zeros((w.rows, w.cols)))
+        .collect();
+    for_each_tile_part(w, |tx, ty, src, dst| {
+        let t = tile(tx, ty)?;
+        for (k, o) in out.iter_mut().enumerate().take(t.planes()) {
+            o.slice_mut(s![dst.0.clone(), dst.1.clone()])
+                .assign(&t.plane(k).slice(s![src.0.clone(), src.1.clone()]));
+        }
+        Ok(())
+    })?;
+    Ok(T::from_planes(out))
+}
+
+/// An overview tile: each of its `planes` planes is made of its four children's 2×2 blocks
+/// reduced by `reduce` (the box average for quantities that average, the maximum for drainage).
+/// `child(cx, cy)` returns `None` for a child outside the world, whose quarter keeps `fill`.
+pub fn overview<T: LevelTile>(
+    tx: i64,
+    ty: i64,
+    planes: usize,
+    fill: f32,
+    reduce: fn([f32; 4]) -> f32,
+    mut child: impl FnMut(i64, i64) -> Result<Option<Arc<T>>, TileError>,
+) -> Result<T, TileError> {
+    let n = TILE_SIZE as usize;
+    let half = n / 2;
+    let mut out: Vec<Array2<f32>> = (0..planes)
+        .map(|_| Array2::from_elem((n, n), fill))
+        .collect();
+    for (dy, dx) in [(0i64, 0i64), (0, 1), (1, 0), (1, 1)] {
+        let Some(c) = child(2 * tx + dx, 2 * ty + dy)? else {
+            continue;
+        };
+        let (r0, c0) = (dy as usize * half, dx as usize * half);
+        for (k, o) in out.iter_mut().enumerate().take(c.planes()) {
+            reduce2x2(
+                c.plane(k).view(),
+                o.slice_mut(s![r0..r0 + half, c0..c0 + half]),
+                reduce,
+            );
+        }
+    }
+    Ok(T::from_planes(out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use terrasynth_core::raster::box2;
+
+    fn ramp(tx: i64, ty: i64) -> Array2<f32> {
+        Array2::from_shape_fn((256, 256), |(r, c)| {
+            ((ty * T + r as i64) * 1000 + tx * T + c as i64) as f32
+        })
+    }
+
+    #[test]
+    fn assembled_windows_equal_the_plane() {
+        // A window straddling four tiles (with negative coordinates) equals the plane's values.
+        let w = Window::new(-10, 250, 30, 20);
+        let got: Array2<f32> = assemble(w, 1, |tx, ty| Ok(Arc::new(ramp(tx, ty)))).unwrap();
+        for r in 0..w.rows {
+            for c in 0..w.cols {
+                let want = ((w.row0 + r as i64) * 1000 + w.col0 + c as i64) as f32;
+                assert_eq!(got[[r, c]], want);
+            }
+        }
+    }
+
+    #[test]
+    fn overviews_reduce_children_and_fill_missing_ones() {
+        let child = |cx: i64, cy: i64| -> Result<Option<Arc<Array2<f32>>>, TileError> {
+            Ok((cx, cy) != (1, 1)).map(|keep| {
+                keep.then(|| Arc::new(Array2::from_elem((256, 256), (cx + 2 * cy) as f32)))
+            })
+        };
+        let o: Array2<f32> = overview(0, 0, 1, -5.0, box2, child).unwrap();
+        assert_eq!(o[[0, 0]], 0.0);
+        assert_eq!(o[[0, 200]], 1.0);
+        assert_eq!(o[[200, 0]], 2.0);
+        assert_eq!(o[[200, 200]], -5.0);
+    }
+
+    #[test]
+    fn the_cache_computes_once_and_weighs_bytes() {
+        let cache: LevelCache<Vec<Array2<f32>>> = LevelCache::new(1 << 30);
+        let mut calls = 0;
+        for _ in 0..3 {
+            let t = cache
+                .get_or_compute((3, 1, 2), || {
+                    calls += 1;
+                    Ok(vec![Array2::zeros((256, 256)); 2])
+                })
+                .unwrap();
+            assert_eq!(t.len(), 2);
+        }
+        assert_eq!(calls, 1);
+        assert_eq!(cache.stats().hits.load(Ordering::Relaxed), 2);
+        assert_eq!(cache.weighted_size(), 2 * (256 * 256 * 4 + 64));
+        let err = cache.get_or_compute((3, 0, 0), || Err(TileError::Encode("x".into())));
+        assert!(err.is_err());
+    }
+}

@@ -1,0 +1,176 @@
+//! The vegetation pyramid: one density grid (0–1) per species at every zoom.
+//!
+//! - **Native zoom `z_b`**: cut from the whole-world niche model and seeding simulation
+//!   ([`crate::base_layers`]).
+//! - **Amplified zooms**: synthesized by the amplifier from the *same matched atoms* as the
+//!   elevation (the parent elevation window decides the matches; the species layers of the atoms
+//!   are blended and corrected so their 2×2 averages reproduce the parent densities; a species the
+//!   dictionary lacks is carried by the smooth up-sampling of its parent). Then the niche model on
+//!   the served terrain moves the density of each parent pixel among its 2×2 children in
+//!   proportion to their suitability (the parent's density is kept), and the viability step fades
+//!   it on marginal ground and zeroes it where the niche excludes it.
+//! - **Overviews** (`z < z_b`): the 2×2 box average of the children (densities average).
+
+use std::sync::Arc;
+
+use ndarray::Array2;
+
+use terrasynth_core::landscape::{vegetation, LandscapeConfig};
+use terrasynth_core::raster::box2;
+use terrasynth_core::synth::{Amplifier, Field, Window};
+
+use crate::base_layers::{cut, WholeWorld};
+use crate::drainage::DrainageLevels;
+use crate::elevation::ElevationLevels;
+use crate::error::TileError;
+use crate::pyramid::{assemble, overview, tile_window, LevelCache};
+use crate::terrain::Terrain;
+
+/// The pyramids vegetation is computed from.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs<'a> {
+    /// Elevation levels (the matches and the niche's terrain).
+    pub elevation: &'a ElevationLevels,
+    /// Drainage levels (the niche's wetness).
+    pub drainage: &'a DrainageLevels,
+    /// Whole-world layers (the native zoom).
+    pub whole: &'a WholeWorld,
+}
+
+/// The vegetation levels of a world.
+#[derive(Debug)]
+pub struct VegetationLevels {
+    landscape: Arc<LandscapeConfig>,
+    /// The amplifier reconstructing the species layers from the same matches as elevation.
+    amplifier: Amplifier,
+    cache: LevelCache<Vec<Array2<f32>>>,
+}
+
+impl VegetationLevels {
+    /// Vegetation of `landscape`'s species, amplified with `amplifier` (which reconstructs only
+    /// the species layers), cached in at most `cache_bytes` bytes.
+    pub fn new(landscape: Arc<LandscapeConfig>, amplifier: Amplifier, cache_bytes: u64) -> Self {
+        VegetationLevels {
+            landscape,
+            amplifier,
+            cache: LevelCache::new(cache_bytes),
+        }
+    }
+
+    /// The cache of level tiles.
+    pub fn cache(&self) -> &LevelCache<Vec<Array2<f32>>> {
+        &self.cache
+    }
+
+    /// The vegetation level tile `(z, tx, ty)`, computed once.
+    pub fn tile(
+        &self,
+        inputs: Inputs<'_>,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<Arc<Vec<Array2<f32>>>, TileError> {
+        self.cache
+            .get_or_compute((z, tx, ty), || self.compute(inputs, z, tx, ty))
+    }
+
+    /// Vegetation over window `w` of zoom `z`, one grid per species.
+    pub fn window(
+        &self,
+        inputs: Inputs<'_>,
+        z: u8,
+        w: Window,
+    ) -> Result<Vec<Array2<f32>>, TileError> {
+        assemble(w, self.landscape.species.len(), |tx, ty| {
+            self.tile(inputs, z, tx, ty)
+        })
+    }
+
+    fn compute(
+        &self,
+        inputs: Inputs<'_>,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<Vec<Array2<f32>>, TileError> {
+        let w = tile_window(tx, ty);
+        let extent = inputs.elevation.extent();
+        let zb = extent.z_base;
+        let species = &self.landscape.species;
+        if z == zb {
+            let base = inputs.whole.get(inputs.elevation)?;
+            return Ok(base
+                .vegetation
+                .iter()
+                .map(|a| cut(a, base.window, w, 0.0))
+                .collect());
+        }
+        if z < zb {
+            return overview(tx, ty, species.len(), 0.0, box2, |cx, cy| {
+                if extent.tile_outside(z + 1, cx, cy) {
+                    return Ok(None);
+                }
+                self.tile(inputs, z + 1, cx, cy).map(Some)
+            });
+        }
+        // Same parent elevation window, hence same matches, as the elevation tile.
+        let amp = &self.amplifier;
+        let need = amp.parent_window_for(w);
+        let parent_elev = inputs.elevation.window(z - 1, need)?;
+        let parent_veg = self.window(inputs, z - 1, need)?;
+        let in_dict: Vec<bool> = species
+            .iter()
+            .map(|sp| amp.dictionary().layer_index(&sp.name).is_some())
+            .collect();
+        let parent = Field {
+            window: need,
+            elevation: parent_elev,
+            layers: species
+                .iter()
+                .zip(&parent_veg)
+                .zip(&in_dict)
+                .filter(|(_, &d)| d)
+                .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
+                .collect(),
+        };
+        let field = if in_dict.iter().any(|&d| d) {
+            Some(amp.amplify(&parent, w, extent.level_cell_m(z - 1) as f32)?)
+        } else {
+            None
+        };
+        // The niche on the served terrain moves density inside each parent pixel's 2×2 children
+        // (the parent's density is kept where the children can hold it).
+        let terrain = Terrain::of(inputs.elevation, z, w)?;
+        let area = inputs
+            .drainage
+            .tile(inputs.elevation, inputs.whole, z, tx, ty)?;
+        let wet = wetness(&area);
+        let viability = self.landscape.viability;
+        let mut out = Vec::with_capacity(species.len());
+        for (k, sp) in species.iter().enumerate() {
+            let mut d = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
+                Some(a) => a.clone(),
+                None => amp.upsample_layer(&parent_veg[k], need, w)?,
+            };
+            let suit = vegetation::suitability_grid(
+                sp,
+                &terrain.elevation,
+                &terrain.slope,
+                &terrain.northness,
+                &wet,
+            );
+            vegetation::redistribute_in_blocks(&mut d, &suit, w.row0, w.col0);
+            // Then the viability step fades density on marginal ground.
+            ndarray::Zip::from(&mut d)
+                .and(&suit)
+                .for_each(|v, &s| *v *= vegetation::viability_gate(s, viability));
+            out.push(d);
+        }
+        Ok(out)
+    }
+}
+
+/// Wetness (log10 of the upstream area, 0 where there is none) of a drainage tile.
+pub fn wetness(area: &Array2<f32>) -> Array2<f32> {
+    area.mapv(|a| if a > 0.0 { a.log10() } else { 0.0 })
+}

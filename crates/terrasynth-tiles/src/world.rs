@@ -1,0 +1,330 @@
+//! A world ready to serve: its [`Extent`] on the tile planes and the pyramids of its layers —
+//! elevation, drainage and vegetation, plus splat weights and colour inputs computed per tile —
+//! built from its [`WorldParts`]. The world's cache budget is shared by its whole-world layers
+//! (first) and its level caches: half for elevation, a quarter each for vegetation and drainage.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use ndarray::Array2;
+
+use terrasynth_core::dictionary::{Dictionary, MatchWeights};
+use terrasynth_core::landscape::LandscapeConfig;
+use terrasynth_core::raster::{CellSizes, Grid};
+use terrasynth_core::synth::{Amplifier, Window};
+
+use crate::base_layers::{base_layer_bytes, WholeWorld};
+use crate::drainage::DrainageLevels;
+use crate::elevation::ElevationLevels;
+use crate::error::TileError;
+use crate::extent::Extent;
+use crate::materials;
+use crate::vegetation::{Inputs, VegetationLevels};
+
+/// Everything a world is made of, resolved: its base, dictionary and settings.
+#[derive(Clone, Debug)]
+pub struct WorldParts {
+    /// URL name of the world.
+    pub name: String,
+    /// Human title.
+    pub title: String,
+    /// Attribution shown by map clients.
+    pub attribution: String,
+    /// The georeferenced base raster (EPSG:4326 or EPSG:3857).
+    pub base: Grid,
+    /// Native zoom of the base; `None` derives it from the base's cell size.
+    pub z_base: Option<u8>,
+    /// Deepest zoom served.
+    pub max_zoom: u8,
+    /// Elevation (m) of pixels outside the base coverage.
+    pub fill_m: f32,
+    /// The amplification dictionary (used at every level).
+    pub dictionary: Arc<Dictionary>,
+    /// Content id of the dictionary.
+    pub dictionary_id: String,
+    /// Matching weights.
+    pub weights: MatchWeights,
+    /// The world's memory budget, bytes: its whole-world landscape layers first, the rest (at
+    /// least a quarter) for its level-tile caches.
+    pub cache_bytes: u64,
+    /// Landscape layers: species niches, materials, drainage style.
+    pub landscape: LandscapeConfig,
+}
+
+/// A snapshot of a world's counters, for `/metrics`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WorldStats {
+    /// Elevation level tiles served from the cache.
+    pub cache_hits: u64,
+    /// Elevation level tiles that had to be computed.
+    pub cache_misses: u64,
+    /// Level tiles synthesized by amplification (zooms above `z_b`).
+    pub tiles_synthesized: u64,
+    /// Seconds spent computing elevation level tiles.
+    pub synthesis_seconds: f64,
+}
+
+/// A world ready to serve tiles.
+pub struct World {
+    name: String,
+    title: String,
+    attribution: String,
+    dictionary_id: String,
+    fingerprint: String,
+    landscape: Arc<LandscapeConfig>,
+    elevation: ElevationLevels,
+    whole: WholeWorld,
+    drainage: DrainageLevels,
+    vegetation: VegetationLevels,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("name", &self.name)
+            .field("extent", self.elevation.extent())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Hex SHA-256 of everything that determines a world's tiles.
+fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(format!(
+        "|{:?}|{}|{}|{}|{}|{:?}|",
+        parts.base.georef,
+        parts.dictionary_id,
+        z_base,
+        parts.max_zoom,
+        parts.fill_m.to_bits(),
+        parts.weights
+    ));
+    h.update(format!("{:?}|", parts.landscape));
+    for v in parts.base.data.iter() {
+        h.update(v.to_bits().to_le_bytes());
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+impl World {
+    /// Builds a world from its parts (resolving `z_base` from the base's cell size when absent).
+    pub fn new(parts: WorldParts) -> Result<World, TileError> {
+        let extent = Extent::of_base(&parts.base, parts.z_base, parts.max_zoom)?;
+        parts.landscape.validate()?;
+        let amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?.without_layers();
+        let layer_amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?
+            .with_only_layers(&parts.landscape.species_names());
+        let fingerprint = fingerprint(&parts, extent.z_base);
+        // The whole-world landscape layers come out of the same budget; the level caches keep
+        // at least a quarter of it.
+        let base_bytes = base_layer_bytes(
+            extent.world_window(extent.z_base),
+            parts.landscape.species.len(),
+        );
+        let budget = parts
+            .cache_bytes
+            .saturating_sub(base_bytes)
+            .max(parts.cache_bytes / 4);
+        let landscape = Arc::new(parts.landscape);
+        Ok(World {
+            name: parts.name,
+            title: parts.title,
+            attribution: parts.attribution,
+            dictionary_id: parts.dictionary_id,
+            fingerprint,
+            elevation: ElevationLevels::new(
+                parts.base,
+                parts.fill_m,
+                extent,
+                amplifier,
+                budget / 2,
+            ),
+            whole: WholeWorld::new(landscape.clone()),
+            drainage: DrainageLevels::new(budget / 4),
+            vegetation: VegetationLevels::new(landscape.clone(), layer_amplifier, budget / 4),
+            landscape,
+        })
+    }
+
+    fn inputs(&self) -> Inputs<'_> {
+        Inputs {
+            elevation: &self.elevation,
+            drainage: &self.drainage,
+            whole: &self.whole,
+        }
+    }
+
+    /// A hash of everything that determines this world's tiles (base values and georeference,
+    /// dictionary id, weights, zooms, fill, landscape, crate version): tile ETags derive from it.
+    pub fn fingerprint(&self) -> &str {
+        &self.fingerprint
+    }
+
+    /// URL name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Human title.
+    pub fn title(&self) -> &str {
+        &self.title
+    }
+
+    /// Attribution for map clients.
+    pub fn attribution(&self) -> &str {
+        &self.attribution
+    }
+
+    /// The world's place on the tile planes.
+    pub fn extent(&self) -> &Extent {
+        self.elevation.extent()
+    }
+
+    /// Native zoom of the base.
+    pub fn z_base(&self) -> u8 {
+        self.extent().z_base
+    }
+
+    /// Deepest zoom served.
+    pub fn max_zoom(&self) -> u8 {
+        self.extent().max_zoom
+    }
+
+    /// Shallowest zoom served (always 0: overviews reach the whole globe).
+    pub fn min_zoom(&self) -> u8 {
+        0
+    }
+
+    /// Fill elevation outside the base coverage, metres.
+    pub fn fill_m(&self) -> f32 {
+        self.elevation.fill_m()
+    }
+
+    /// Bounds `[w, s, e, n]` in degrees.
+    pub fn bounds(&self) -> [f64; 4] {
+        self.extent().bounds
+    }
+
+    /// Centre `[lon, lat, zoom]` for map clients (zoom: two above the native zoom).
+    pub fn center(&self) -> [f64; 3] {
+        self.extent().center()
+    }
+
+    /// Content ids of the dictionaries of the synthesis chain.
+    pub fn dictionary_ids(&self) -> Vec<String> {
+        vec![self.dictionary_id.clone()]
+    }
+
+    /// The landscape configuration.
+    pub fn landscape(&self) -> &LandscapeConfig {
+        &self.landscape
+    }
+
+    /// A snapshot of the world's counters.
+    pub fn stats(&self) -> WorldStats {
+        let e = &self.elevation;
+        WorldStats {
+            cache_hits: e.cache().stats().hits.load(Ordering::Relaxed),
+            cache_misses: e.cache().stats().misses.load(Ordering::Relaxed),
+            tiles_synthesized: e.tiles_synthesized.load(Ordering::Relaxed),
+            synthesis_seconds: e.synthesis_micros.load(Ordering::Relaxed) as f64 / 1e6,
+        }
+    }
+
+    /// Bytes currently held by the level-tile caches (elevation, vegetation, drainage).
+    pub fn cache_bytes(&self) -> u64 {
+        self.elevation.cache().weighted_size()
+            + self.vegetation.cache().weighted_size()
+            + self.drainage.cache().weighted_size()
+    }
+
+    /// Checks that tile `(z, x, y)` exists and intersects the world: `OutOfRange`, `ZoomTooDeep`
+    /// or `OutsideWorld` otherwise.
+    pub fn check_tile(&self, z: u8, x: u32, y: u32) -> Result<(), TileError> {
+        self.extent().check_tile(z, x, y)
+    }
+
+    /// Metric ground cell size of zoom `z`'s pixels at the world's reference latitude.
+    pub fn level_cell_m(&self, z: u8) -> f64 {
+        self.extent().level_cell_m(z)
+    }
+
+    /// Per-row metric cell sizes of the rows `[row0, row0 + rows)` of zoom `z`'s pixel plane
+    /// (true Mercator scale at each row's latitude), for slopes and hillshades.
+    pub fn cell_sizes(&self, z: u8, row0: i64, rows: usize) -> CellSizes {
+        self.extent().cell_sizes(z, row0, rows)
+    }
+
+    /// The elevation tile `(z, x, y)`, 256×256 metres, after [`World::check_tile`]. CPU-bound:
+    /// call it off the async runtime.
+    pub fn elevation_tile(&self, z: u8, x: u32, y: u32) -> Result<Arc<Array2<f32>>, TileError> {
+        self.check_tile(z, x, y)?;
+        self.elevation.tile(z, i64::from(x), i64::from(y))
+    }
+
+    /// An arbitrary window of zoom `z`'s pixel plane, assembled from level tiles. `z` may exceed
+    /// `max_zoom` by one (for 512-px tiles at the deepest zoom).
+    pub fn elevation_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
+        self.elevation.window(z, w)
+    }
+
+    /// Computes the whole-world layers of the native zoom now (drainage of the whole base and
+    /// the base vegetation), which are otherwise computed by the first landscape request that
+    /// needs them; a request arriving meanwhile waits for the same computation. Returns the bytes
+    /// they hold.
+    pub fn prepare_landscape(&self) -> Result<u64, TileError> {
+        self.whole
+            .get(&self.elevation)
+            .map(|b| base_layer_bytes(b.window, b.vegetation.len()))
+    }
+
+    /// The drainage tile `(z, x, y)`: upstream area in m² (after [`World::check_tile`]).
+    pub fn drainage_tile(&self, z: u8, x: u32, y: u32) -> Result<Arc<Array2<f32>>, TileError> {
+        self.check_tile(z, x, y)?;
+        self.drainage
+            .tile(&self.elevation, &self.whole, z, i64::from(x), i64::from(y))
+    }
+
+    /// Drainage over an arbitrary window of zoom `z`, assembled from drainage tiles.
+    pub fn drainage_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
+        self.drainage.window(&self.elevation, &self.whole, z, w)
+    }
+
+    /// The vegetation tile `(z, x, y)`: one density grid (0–1) per species.
+    pub fn vegetation_tile(
+        &self,
+        z: u8,
+        x: u32,
+        y: u32,
+    ) -> Result<Arc<Vec<Array2<f32>>>, TileError> {
+        self.check_tile(z, x, y)?;
+        self.vegetation
+            .tile(self.inputs(), z, i64::from(x), i64::from(y))
+    }
+
+    /// Vegetation over an arbitrary window of zoom `z`, one grid per species.
+    pub fn vegetation_window(&self, z: u8, w: Window) -> Result<Vec<Array2<f32>>, TileError> {
+        self.vegetation.window(self.inputs(), z, w)
+    }
+
+    /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),
+    /// and the tile's hillshade (0–1).
+    pub fn material_tile(
+        &self,
+        z: u8,
+        x: u32,
+        y: u32,
+    ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
+        self.check_tile(z, x, y)?;
+        materials::material_tile(
+            &self.landscape,
+            &self.vegetation,
+            self.inputs(),
+            z,
+            i64::from(x),
+            i64::from(y),
+        )
+    }
+}

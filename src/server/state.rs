@@ -1,0 +1,192 @@
+//! The handlers' shared state: the live set of worlds (swapped whole when a world is created or
+//! deleted, so a request works on a consistent snapshot without locking), the encoded-tile
+//! cache, the bounded synthesis queue, the admin service and the settings.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, RwLock};
+
+use axum::body::Bytes;
+use axum::http::HeaderValue;
+use moka::sync::Cache;
+use tokio::sync::Semaphore;
+
+use terrasynth_tiles::World;
+
+use super::admin::Admin;
+use super::error::{ServerError, StartupError};
+use super::metrics::Metrics;
+use super::worlds::Worlds;
+use crate::config::ServerConfig;
+
+/// Requests waiting for a synthesis slot, bounded: entering a full queue is [`ServerError::Busy`].
+#[derive(Debug)]
+pub struct Queue {
+    waiting: AtomicUsize,
+    limit: usize,
+}
+
+/// A place in the [`Queue`], released on drop.
+#[derive(Debug)]
+pub struct QueueSlot<'a>(&'a Queue);
+
+impl Drop for QueueSlot<'_> {
+    fn drop(&mut self) {
+        self.0.waiting.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+impl Queue {
+    /// A queue admitting `limit` waiting requests.
+    pub fn new(limit: usize) -> Self {
+        Queue {
+            waiting: AtomicUsize::new(0),
+            limit,
+        }
+    }
+
+    /// Takes a place, or fails with [`ServerError::Busy`] when the queue is full.
+    pub fn enter(&self) -> Result<QueueSlot<'_>, ServerError> {
+        let prev = self.waiting.fetch_add(1, Ordering::AcqRel);
+        if prev >= self.limit {
+            self.waiting.fetch_sub(1, Ordering::AcqRel);
+            return Err(ServerError::Busy);
+        }
+        Ok(QueueSlot(self))
+    }
+}
+
+/// The live set of worlds, swapped as a whole when a world is created or deleted, so that a
+/// request holds a consistent snapshot without locking.
+#[derive(Clone, Default)]
+pub struct LiveWorlds(Arc<RwLock<Arc<Worlds>>>);
+
+impl LiveWorlds {
+    /// A live set starting with `worlds`.
+    pub fn new(worlds: Worlds) -> Self {
+        LiveWorlds(Arc::new(RwLock::new(Arc::new(worlds))))
+    }
+
+    /// The current worlds.
+    pub fn snapshot(&self) -> Arc<Worlds> {
+        self.0.read().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// World `name`, if served.
+    pub fn get(&self, name: &str) -> Option<Arc<World>> {
+        self.snapshot().get(name).cloned()
+    }
+
+    /// Adds (or replaces) a world.
+    pub fn insert(&self, world: Arc<World>) {
+        let mut guard = self.0.write().unwrap_or_else(|p| p.into_inner());
+        let mut next = Worlds::clone(&guard);
+        next.insert(world.name().to_string(), world);
+        *guard = Arc::new(next);
+    }
+
+    /// Removes a world; whether it was served.
+    pub fn remove(&self, name: &str) -> bool {
+        let mut guard = self.0.write().unwrap_or_else(|p| p.into_inner());
+        let mut next = Worlds::clone(&guard);
+        let had = next.remove(name).is_some();
+        *guard = Arc::new(next);
+        had
+    }
+}
+
+/// Shared state of the handlers.
+///
+/// Cloning it (which axum does for every request's `State` extractor) takes a fresh snapshot of
+/// the live worlds into [`AppState::worlds`], so handlers read `state.worlds` as a plain map and
+/// see worlds created or deleted through the admin API at their next request.
+pub struct AppState {
+    /// The worlds served (a snapshot of [`AppState::live`] taken when the state was cloned).
+    pub worlds: Arc<Worlds>,
+    /// The live set of worlds.
+    pub live: LiveWorlds,
+    /// The admin API and catalogue (`None`: no store, catalogue empty, admin routes absent).
+    pub admin: Option<Arc<Admin>>,
+    /// Encoded tiles by ETag, weighed in bytes.
+    pub tile_bytes: Cache<String, Bytes>,
+    /// Concurrent tile computations.
+    pub synth: Arc<Semaphore>,
+    /// Requests waiting for a computation slot.
+    pub queue: Arc<Queue>,
+    /// `Cache-Control` of tiles.
+    pub cache_control: HeaderValue,
+    /// Request metrics.
+    pub metrics: Arc<Metrics>,
+    /// Server settings.
+    pub config: Arc<ServerConfig>,
+}
+
+impl Clone for AppState {
+    fn clone(&self) -> Self {
+        AppState {
+            worlds: self.live.snapshot(),
+            live: self.live.clone(),
+            admin: self.admin.clone(),
+            tile_bytes: self.tile_bytes.clone(),
+            synth: self.synth.clone(),
+            queue: self.queue.clone(),
+            cache_control: self.cache_control.clone(),
+            metrics: self.metrics.clone(),
+            config: self.config.clone(),
+        }
+    }
+}
+
+impl AppState {
+    /// State serving `live` under `config`, with the admin service when given (without it the
+    /// catalogue is empty and the admin routes are absent).
+    pub fn new(
+        live: LiveWorlds,
+        admin: Option<Arc<Admin>>,
+        config: &ServerConfig,
+    ) -> Result<Self, StartupError> {
+        let cache_control = HeaderValue::from_str(&config.cache_control).map_err(|_| {
+            StartupError::Setting(format!("invalid cache_control `{}`", config.cache_control))
+        })?;
+        let bytes_capacity = config.encoded_cache_bytes();
+        Ok(AppState {
+            worlds: live.snapshot(),
+            live,
+            admin,
+            tile_bytes: Cache::builder()
+                .weigher(|k: &String, v: &Bytes| {
+                    u32::try_from(k.len() + v.len() + 64).unwrap_or(u32::MAX)
+                })
+                .max_capacity(bytes_capacity)
+                .build(),
+            synth: Arc::new(Semaphore::new(config.synth_concurrency.max(1))),
+            queue: Arc::new(Queue::new(config.synth_queue)),
+            cache_control,
+            metrics: Arc::new(Metrics::default()),
+            config: Arc::new(config.clone()),
+        })
+    }
+
+    /// World `name` of this request's snapshot, or 404.
+    pub fn world(&self, name: &str) -> Result<Arc<World>, ServerError> {
+        self.worlds
+            .get(name)
+            .cloned()
+            .ok_or_else(|| ServerError::NotFound(format!("unknown world `{name}`")))
+    }
+
+    /// The admin service, or 404 (admin disabled).
+    pub fn admin(&self) -> Result<Arc<Admin>, ServerError> {
+        self.admin
+            .clone()
+            .ok_or_else(|| ServerError::NotFound("no such resource".into()))
+    }
+}
+
+/// Runs CPU- or IO-bound work on the blocking pool, never on a runtime thread.
+pub async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, ServerError> + Send + 'static,
+) -> Result<T, ServerError> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| ServerError::Internal(e.to_string()))?
+}

@@ -1,0 +1,1147 @@
+//! The admin API and the dictionary catalogue through `oneshot` on the real router with a store
+//! in a temporary directory: authentication (admin disabled, no token, wrong token, token on a
+//! public route), uploads in every format (GeoTIFF, PNG with a georeference, EXR, multipart with
+//! layers), every rejection (415, 400, 413, 422) with nothing written to the store, a fuzz-style
+//! test of random and mutated files, and the whole build → world → tiles flow with its 409s,
+//! cancellation and the full queue.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::body::Body;
+use axum::http::{header, Method, Request, StatusCode};
+
+use terrasynth::config::{parse_world, Config, Secret, ServerConfig};
+use terrasynth::server::startup::state_with;
+use terrasynth::server::{app, Worlds};
+use terrasynth_core::raster::{Georef, Grid};
+use terrasynth_store::Store;
+
+use crate::support::{decode_rgba, send, send_json};
+use terrasynth_tiles::World;
+
+use terrasynth_test_support::{
+    exr_bytes, geotiff_bytes, png16_bytes, small_dictionary, store_files, synthetic_terrain,
+    tile_of,
+};
+
+const TOKEN: &str = "test-token-0123";
+
+/// A small configured world `mini` (read-only for the admin API).
+fn mini_world() -> World {
+    terrasynth_test_support::mini_world(
+        synthetic_terrain(240, 240, 3),
+        small_dictionary(2),
+        "mini-dictionary",
+        10,
+        16 << 20,
+    )
+}
+
+fn config(store: &Path, token: &str, edit: impl FnOnce(&mut ServerConfig)) -> Config {
+    let mut server = ServerConfig {
+        store_dir: store.to_path_buf(),
+        admin_token: Secret(token.into()),
+        cache_mb: 32,
+        ..ServerConfig::default()
+    };
+    edit(&mut server);
+    let mini = parse_world(
+        "name = \"mini\"\nbase = \"x.tif\"\nmax_zoom = 10\n",
+        "mini.toml",
+        store,
+    )
+    .unwrap();
+    Config {
+        server,
+        worlds: vec![mini],
+    }
+}
+
+fn router_with(store: &Path, token: &str, edit: impl FnOnce(&mut ServerConfig)) -> axum::Router {
+    let mut worlds = Worlds::new();
+    worlds.insert("mini".into(), Arc::new(mini_world()));
+    let config = config(store, token, edit);
+    let store = Store::open(&config.server.store_dir).unwrap();
+    app(state_with(&config, store, worlds).unwrap())
+}
+
+fn router(store: &Path) -> axum::Router {
+    router_with(store, TOKEN, |_| {})
+}
+
+fn req(method: Method, uri: &str, content_type: Option<&str>, body: Vec<u8>) -> Request<Body> {
+    let mut b = Request::builder()
+        .method(method)
+        .uri(uri)
+        .header(header::AUTHORIZATION, format!("Bearer {TOKEN}"));
+    if let Some(ct) = content_type {
+        b = b.header(header::CONTENT_TYPE, ct);
+    }
+    b.body(Body::from(body)).unwrap()
+}
+
+fn get(uri: &str) -> Request<Body> {
+    req(Method::GET, uri, None, Vec::new())
+}
+
+fn json(method: Method, uri: &str, v: serde_json::Value) -> Request<Body> {
+    req(
+        method,
+        uri,
+        Some("application/json"),
+        v.to_string().into_bytes(),
+    )
+}
+
+fn problem_detail(st: StatusCode, h: &axum::http::HeaderMap, body: &[u8]) -> String {
+    assert_eq!(h[header::CONTENT_TYPE], "application/problem+json", "{st}");
+    let v: serde_json::Value = serde_json::from_slice(body).unwrap();
+    assert_eq!(v["status"], st.as_u16());
+    v["detail"].as_str().unwrap().to_string()
+}
+
+async fn upload_tiff(
+    app: &axum::Router,
+    name: &str,
+    rows: usize,
+    cols: usize,
+    seed: u64,
+) -> String {
+    let (st, v) = send_json(
+        app,
+        req(
+            Method::POST,
+            &format!("/admin/exemplars?name={name}"),
+            Some("image/tiff"),
+            geotiff_bytes(rows, cols, seed),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    v["id"].as_str().unwrap().to_string()
+}
+
+async fn wait_job(app: &axum::Router, id: &str) -> serde_json::Value {
+    let deadline = Instant::now() + Duration::from_secs(300);
+    loop {
+        let (st, v) = send_json(app, get(&format!("/admin/jobs/{id}"))).await;
+        assert_eq!(st, StatusCode::OK);
+        let state = v["state"].as_str().unwrap().to_string();
+        if state != "queued" && state != "running" {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "job {id} never ended");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+// --- authentication ---
+
+#[tokio::test]
+async fn admin_is_absent_without_a_token() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router_with(dir.path(), "", |_| {});
+    for uri in ["/admin/exemplars", "/admin/jobs", "/admin/jobs/x"] {
+        let (st, h, body) = send(&app, get(uri)).await;
+        assert_eq!(st, StatusCode::NOT_FOUND, "{uri}");
+        problem_detail(st, &h, &body);
+    }
+    // The public catalogue still answers.
+    let (st, v) = send_json(&app, get("/dictionaries")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert!(v.as_array().unwrap().is_empty());
+}
+
+#[tokio::test]
+async fn missing_or_wrong_tokens_are_401_and_public_routes_ignore_tokens() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let anonymous = Request::builder()
+        .uri("/admin/exemplars")
+        .body(Body::empty())
+        .unwrap();
+    let (st, h, body) = send(&app, anonymous).await;
+    assert_eq!(st, StatusCode::UNAUTHORIZED);
+    assert!(h[header::WWW_AUTHENTICATE]
+        .to_str()
+        .unwrap()
+        .starts_with("Bearer"));
+    assert!(problem_detail(st, &h, &body).contains("Authorization"));
+    for value in [
+        "Bearer wrong-token",
+        "Bearer test-token-012",
+        "Bearer test-token-01234",
+        "Basic dGVzdA==",
+        TOKEN,
+    ] {
+        let r = Request::builder()
+            .uri("/admin/exemplars")
+            .header(header::AUTHORIZATION, value)
+            .body(Body::empty())
+            .unwrap();
+        let (st, h, body) = send(&app, r).await;
+        assert_eq!(st, StatusCode::UNAUTHORIZED, "{value}");
+        problem_detail(st, &h, &body);
+    }
+    // A wrong token cannot upload either, and nothing is written.
+    let before = store_files(dir.path());
+    let r = Request::builder()
+        .method(Method::POST)
+        .uri("/admin/exemplars?name=x")
+        .header(header::AUTHORIZATION, "Bearer nope")
+        .header(header::CONTENT_TYPE, "image/tiff")
+        .body(Body::from(geotiff_bytes(32, 32, 1)))
+        .unwrap();
+    assert_eq!(send(&app, r).await.0, StatusCode::UNAUTHORIZED);
+    assert_eq!(store_files(dir.path()), before);
+    // The right token works; a token on a public route changes nothing.
+    assert_eq!(send(&app, get("/admin/exemplars")).await.0, StatusCode::OK);
+    let (st, v) = send_json(&app, get("/worlds")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(v[0]["name"], "mini");
+    assert_eq!(send(&app, get("/healthz")).await.0, StatusCode::OK);
+    assert_eq!(
+        send(&app, get("/tiles/mini/elevation/8/178/95.png"))
+            .await
+            .0,
+        StatusCode::OK
+    );
+}
+
+// --- uploads ---
+
+#[tokio::test]
+async fn uploads_in_every_format() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let (st, h, body) = send(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=crop",
+            Some("image/tiff"),
+            geotiff_bytes(48, 64, 1),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED);
+    let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(v["name"], "crop");
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(64), Some(48))
+    );
+    assert_eq!(v["layers"], serde_json::json!(["elevation"]));
+    assert_eq!(v["crs"], "EPSG:4326");
+    assert_eq!(v["statistics"]["valid_cells"], 48 * 64);
+    let id = v["id"].as_str().unwrap();
+    assert_eq!(id.len(), 64);
+    assert_eq!(
+        h[header::LOCATION],
+        format!("/admin/exemplars/{id}").as_str()
+    );
+    // Same bytes, same name: same id.
+    let (_, again) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=crop",
+            Some("image/tiff"),
+            geotiff_bytes(48, 64, 1),
+        ),
+    )
+    .await;
+    assert_eq!(again["id"], v["id"]);
+
+    // PNG with its georeference in the query (EPSG:3857 metres).
+    let (st, p) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=png&cell_size=30&west=8000000&north=5000000&crs=EPSG:3857",
+            Some("image/png"),
+            png16_bytes(40, 40, 2),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{p}");
+    assert_eq!(p["crs"], "EPSG:3857");
+    assert_eq!(p["cell_size"], serde_json::json!([30.0, 30.0]));
+
+    // EXR: every channel a layer, elevation first.
+    let (st, e) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=exr&cell_size=0.004166666666666667&west=74&north=42.5",
+            Some("image/x-exr"),
+            exr_bytes(32, 32, 3),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{e}");
+    assert_eq!(e["layers"], serde_json::json!(["elevation", "forest"]));
+
+    // Multipart: an elevation part and a named layer on the same grid.
+    let (st, m) = send_json(
+        &app,
+        multipart(
+            "mp",
+            &[
+                ("elevation", geotiff_bytes(32, 32, 4)),
+                ("snow", geotiff_bytes(32, 32, 5)),
+            ],
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{m}");
+    assert_eq!(m["layers"], serde_json::json!(["elevation", "snow"]));
+
+    let (st, list) = send_json(&app, get("/admin/exemplars")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(list.as_array().unwrap().len(), 4);
+    let (st, one) = send_json(&app, get(&format!("/admin/exemplars/{id}"))).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(one["name"], "crop");
+    assert_eq!(
+        send(&app, get("/admin/exemplars/ffff")).await.0,
+        StatusCode::NOT_FOUND
+    );
+    let del = req(
+        Method::DELETE,
+        &format!("/admin/exemplars/{id}"),
+        None,
+        Vec::new(),
+    );
+    assert_eq!(send(&app, del).await.0, StatusCode::NO_CONTENT);
+    assert_eq!(
+        send(&app, get(&format!("/admin/exemplars/{id}"))).await.0,
+        StatusCode::NOT_FOUND
+    );
+}
+
+fn multipart(name: &str, parts: &[(&str, Vec<u8>)]) -> Request<Body> {
+    let boundary = "terrasynth-test-boundary";
+    let mut body = Vec::new();
+    for (part, bytes) in parts {
+        body.extend_from_slice(
+            format!(
+                "--{boundary}\r\nContent-Disposition: form-data; name=\"{part}\"; filename=\"{part}.tif\"\r\nContent-Type: image/tiff\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    req(
+        Method::POST,
+        &format!("/admin/exemplars?name={name}"),
+        Some(&format!("multipart/form-data; boundary={boundary}")),
+        body,
+    )
+}
+
+// --- rejections: each answers problem+json naming the problem, and writes nothing ---
+
+#[tokio::test]
+async fn every_rejection_names_the_problem_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router_with(dir.path(), TOKEN, |c| {
+        c.max_body_mb = 1;
+        c.max_pixels = 100_000;
+        c.max_dimension = 1000;
+    });
+    let before = store_files(dir.path());
+    let tiff = geotiff_bytes(40, 40, 1);
+    let nan_tiff = {
+        let g = Grid::new(
+            ndarray::Array2::from_elem((16, 16), f32::NAN),
+            terrasynth_test_support::georef_15s(),
+        );
+        let mut out = std::io::Cursor::new(Vec::new());
+        terrasynth_core::raster::write_geotiff(&g, &mut out).unwrap();
+        out.into_inner()
+    };
+    let post = |uri: &str, ct: Option<&str>, body: Vec<u8>| req(Method::POST, uri, ct, body);
+    let cases: Vec<(&str, Request<Body>, StatusCode, &str)> = vec![
+        (
+            "wrong content type",
+            post("/admin/exemplars?name=a", Some("text/plain"), tiff.clone()),
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "Content-Type",
+        ),
+        (
+            "no content type",
+            post("/admin/exemplars?name=a", None, tiff.clone()),
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "Content-Type",
+        ),
+        (
+            "undecodable",
+            post(
+                "/admin/exemplars?name=a",
+                Some("application/octet-stream"),
+                b"GIF89a not a raster".to_vec(),
+            ),
+            StatusCode::BAD_REQUEST,
+            "undecodable",
+        ),
+        (
+            "declared tiff, sent png",
+            post(
+                "/admin/exemplars?name=a",
+                Some("image/tiff"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::BAD_REQUEST,
+            "Content-Type",
+        ),
+        (
+            "truncated",
+            post(
+                "/admin/exemplars?name=a",
+                Some("image/tiff"),
+                tiff[..tiff.len() / 2].to_vec(),
+            ),
+            StatusCode::BAD_REQUEST,
+            "undecodable",
+        ),
+        (
+            "NaN only",
+            post("/admin/exemplars?name=a", Some("image/tiff"), nan_tiff),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "no valid",
+        ),
+        (
+            "PNG without georeference",
+            post(
+                "/admin/exemplars?name=a",
+                Some("image/png"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "georeference",
+        ),
+        (
+            "absurd georeference",
+            post(
+                "/admin/exemplars?name=a&cell_size=1&west=170&north=95",
+                Some("image/png"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "georeference",
+        ),
+        (
+            "negative cell size",
+            post(
+                "/admin/exemplars?name=a&cell_size=-1&west=0&north=0",
+                Some("image/png"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "cell_size",
+        ),
+        (
+            "partial georeference",
+            post(
+                "/admin/exemplars?name=a&cell_size=1",
+                Some("image/png"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "west",
+        ),
+        (
+            "not a number",
+            post(
+                "/admin/exemplars?name=a&cell_size=abc&west=0&north=0",
+                Some("image/png"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::BAD_REQUEST,
+            "cell_size",
+        ),
+        (
+            "unknown crs",
+            post(
+                "/admin/exemplars?name=a&cell_size=1&west=0&north=0&crs=EPSG:32633",
+                Some("image/png"),
+                png16_bytes(8, 8, 1),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "crs",
+        ),
+        (
+            "missing name",
+            post("/admin/exemplars", Some("image/tiff"), tiff.clone()),
+            StatusCode::BAD_REQUEST,
+            "name",
+        ),
+        (
+            "bad name",
+            post(
+                "/admin/exemplars?name=../x",
+                Some("image/tiff"),
+                tiff.clone(),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "name",
+        ),
+        (
+            "body over the limit",
+            post(
+                "/admin/exemplars?name=a",
+                Some("image/tiff"),
+                vec![0u8; (1 << 20) + 1],
+            ),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "limit",
+        ),
+        (
+            "too many pixels",
+            post(
+                "/admin/exemplars?name=a",
+                Some("image/tiff"),
+                geotiff_bytes(400, 400, 1),
+            ),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too large",
+        ),
+        (
+            "too wide",
+            post(
+                "/admin/exemplars?name=a",
+                Some("image/tiff"),
+                geotiff_bytes(2, 1200, 1),
+            ),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "side",
+        ),
+        (
+            "multipart without elevation",
+            multipart("a", &[("forest", tiff.clone())]),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "elevation",
+        ),
+        (
+            "mismatched layer grids",
+            multipart(
+                "a",
+                &[
+                    ("elevation", tiff.clone()),
+                    ("forest", geotiff_bytes(30, 40, 2)),
+                ],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "layer",
+        ),
+        (
+            "bad layer name",
+            multipart(
+                "a",
+                &[
+                    ("elevation", tiff.clone()),
+                    ("no way", geotiff_bytes(40, 40, 2)),
+                ],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "layer name",
+        ),
+        (
+            "duplicate layer",
+            multipart(
+                "a",
+                &[
+                    ("elevation", tiff.clone()),
+                    ("f", tiff.clone()),
+                    ("f", tiff.clone()),
+                ],
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "twice",
+        ),
+        (
+            "dictionary: not JSON",
+            req(
+                Method::POST,
+                "/admin/dictionaries",
+                Some("text/plain"),
+                b"{}".to_vec(),
+            ),
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "application/json",
+        ),
+        (
+            "dictionary: malformed JSON",
+            req(
+                Method::POST,
+                "/admin/dictionaries",
+                Some("application/json"),
+                b"{".to_vec(),
+            ),
+            StatusCode::BAD_REQUEST,
+            "JSON",
+        ),
+        (
+            "dictionary: missing fields",
+            json(
+                Method::POST,
+                "/admin/dictionaries",
+                serde_json::json!({"name": "d"}),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "exemplars",
+        ),
+        (
+            "dictionary: unknown exemplar",
+            json(
+                Method::POST,
+                "/admin/dictionaries",
+                serde_json::json!({"name": "d", "exemplars": ["abc"]}),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "unknown exemplar",
+        ),
+        (
+            "world: unknown base",
+            json(
+                Method::POST,
+                "/admin/worlds",
+                serde_json::json!({"name": "w", "base": "abc", "dictionaries": ["x"]}),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "base",
+        ),
+        (
+            "world: configured name",
+            json(
+                Method::POST,
+                "/admin/worlds",
+                serde_json::json!({"name": "mini", "base": "abc", "dictionaries": ["x"]}),
+            ),
+            StatusCode::CONFLICT,
+            "exists",
+        ),
+    ];
+    for (what, r, want, needle) in cases {
+        let (st, h, body) = send(&app, r).await;
+        assert_eq!(st, want, "{what}: {}", String::from_utf8_lossy(&body));
+        let detail = problem_detail(st, &h, &body);
+        assert!(
+            detail.to_lowercase().contains(&needle.to_lowercase()),
+            "{what}: `{detail}` should mention `{needle}`"
+        );
+        assert_eq!(store_files(dir.path()), before, "{what} wrote to the store");
+    }
+}
+
+/// A xorshift generator for the fuzz test (deterministic).
+struct XorShift(u64);
+
+impl XorShift {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+#[tokio::test]
+async fn fuzzed_uploads_never_fail_the_server_nor_touch_the_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let seeds: Vec<(&str, Vec<u8>)> = vec![
+        ("image/tiff", geotiff_bytes(24, 24, 1)),
+        ("image/png", png16_bytes(24, 24, 2)),
+        ("image/x-exr", exr_bytes(16, 16, 3)),
+    ];
+    let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
+    let mut created = 0usize;
+    for i in 0..240 {
+        let (ct, seed) = &seeds[i % seeds.len()];
+        let mut bytes = seed.clone();
+        match i % 4 {
+            // Random bytes, sometimes behind the right magic.
+            0 => {
+                let n = rng.below(2048);
+                bytes = (0..n).map(|_| rng.next() as u8).collect();
+                if rng.below(2) == 0 {
+                    bytes.splice(0..0, seed[..8].iter().copied());
+                }
+            }
+            // Flip a few bytes.
+            1 => {
+                for _ in 0..1 + rng.below(8) {
+                    let at = rng.below(bytes.len());
+                    bytes[at] ^= 1 << rng.below(8);
+                }
+            }
+            // Truncate.
+            2 => bytes.truncate(rng.below(bytes.len())),
+            // Overwrite a header field with extreme values.
+            _ => {
+                let at = rng.below(bytes.len().min(256).saturating_sub(4));
+                let v = [0xff, 0xff, 0xff, 0x7f];
+                bytes[at..at + 4].copy_from_slice(&v);
+            }
+        }
+        let before = store_files(dir.path()).len();
+        let uri = "/admin/exemplars?name=fuzz&cell_size=0.01&west=74&north=42";
+        let (st, _, body) = send(&app, req(Method::POST, uri, Some(ct), bytes)).await;
+        assert!(
+            !st.is_server_error(),
+            "case {i}: {st} {}",
+            String::from_utf8_lossy(&body)
+        );
+        let after = store_files(dir.path()).len();
+        if st == StatusCode::CREATED {
+            // A mutation that still decodes is a valid upload: one object and its alias.
+            created += 1;
+            assert!(after <= before + 2, "case {i}");
+        } else {
+            assert!(
+                [400u16, 413, 415, 422].contains(&st.as_u16()),
+                "case {i}: unexpected {st}"
+            );
+            assert_eq!(
+                after, before,
+                "case {i}: a rejected upload changed the store"
+            );
+        }
+    }
+    // Most mutations must be rejected (a sanity check that the fuzzing bites).
+    assert!(created < 120, "{created} mutated files accepted");
+}
+
+// --- builds, worlds, conflicts ---
+
+#[tokio::test]
+async fn build_a_dictionary_create_a_world_and_serve_its_tiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let ex = upload_tiff(&app, "crop", 96, 96, 7).await;
+    let (st, h, body) = send(
+        &app,
+        json(
+            Method::POST,
+            "/admin/dictionaries",
+            serde_json::json!({"name": "small", "exemplars": [ex], "atoms": 16, "patch": 16,
+                "stride": 8, "learning": "medoids:2", "seed": 3,
+                "weights": {"elevation": 0.8, "altitude": 0.1, "slope": 0.1}}),
+        ),
+    )
+    .await;
+    assert_eq!(
+        st,
+        StatusCode::ACCEPTED,
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let job = v["id"].as_str().unwrap().to_string();
+    assert_eq!(h[header::LOCATION], format!("/admin/jobs/{job}").as_str());
+    let done = wait_job(&app, &job).await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(done["progress"], 1.0);
+    assert!(done["started"].is_string() && done["finished"].is_string());
+    let dict = done["result"].as_str().unwrap().to_string();
+    let (st, jobs) = send_json(&app, get("/admin/jobs")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(jobs[0]["id"], job.as_str());
+    // Public catalogue, no token needed.
+    let anon = |uri: &str| Request::builder().uri(uri).body(Body::empty()).unwrap();
+    let (st, d) = send_json(&app, anon(&format!("/dictionaries/{dict}"))).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(d["name"], "small");
+    assert_eq!(d["atoms"], 16);
+    // The atoms carry the derived layers and the vegetation of the default world's species
+    // (the niche model on the exemplar), so worlds on this dictionary synthesize vegetation
+    // from its atoms.
+    assert_eq!(
+        d["layers"],
+        serde_json::json!([
+            "log_area",
+            "northness",
+            "spruce",
+            "juniper",
+            "meadow",
+            "steppe"
+        ])
+    );
+    assert_eq!(
+        send(&app, anon("/dictionaries/nope")).await.0,
+        StatusCode::NOT_FOUND
+    );
+
+    // A world from a coarse base (the crop at 1′).
+    let base = {
+        let g = Grid::new(
+            synthetic_terrain(24, 24, 7),
+            Georef {
+                pixel_width: 1.0 / 60.0,
+                pixel_height: 1.0 / 60.0,
+                ..terrasynth_test_support::georef_15s()
+            },
+        );
+        let mut out = std::io::Cursor::new(Vec::new());
+        terrasynth_core::raster::write_geotiff(&g, &mut out).unwrap();
+        out.into_inner()
+    };
+    let (st, b) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=base",
+            Some("image/tiff"),
+            base,
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED);
+    let base_id = b["id"].as_str().unwrap().to_string();
+    let (st, w) = send_json(
+        &app,
+        json(Method::POST, "/admin/worlds", serde_json::json!({"name": "mine", "base": base_id, "dictionaries": [dict], "max_zoom": 9})),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{w}");
+    assert_eq!(w["world"]["max_zoom"], 9);
+    assert_eq!(w["world"]["weights"]["elevation"], 0.8);
+    let z = w["native_zoom"].as_u64().unwrap() as u8;
+    assert!(z < 9);
+    let (st, info) = send_json(&app, get("/worlds/mine")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(info["dictionaries"], serde_json::json!([dict]));
+    // Tiles at the native zoom and one amplified zoom, over the base's centre.
+    let (lon, lat) = (74.2, 42.3);
+    for zz in [z, z + 1] {
+        let (x, y) = tile_of(lon, lat, zz);
+        let (st, _, png) = send(
+            &app,
+            get(&format!("/tiles/mine/elevation/{zz}/{x}/{y}.png")),
+        )
+        .await;
+        assert_eq!(st, StatusCode::OK, "z{zz}");
+        let hts = terrasynth_tiles::decode_terrarium_png(&png).unwrap();
+        assert!(hts.iter().any(|v| *v > 300.0), "z{zz} has terrain");
+        let (st, _, _) = send(
+            &app,
+            get(&format!("/tiles/mine/hillshade/{zz}/{x}/{y}.png")),
+        )
+        .await;
+        assert_eq!(st, StatusCode::OK);
+    }
+    // Conflicts.
+    let (st, _) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds",
+            serde_json::json!({"name": "mine", "base": base_id, "dictionaries": [dict]}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CONFLICT);
+    let (st, _) = send_json(&app, json(Method::POST, "/admin/worlds", serde_json::json!({"name": "deep", "base": base_id, "dictionaries": [dict], "max_zoom": 2}))).await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
+    let (st, _) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds",
+            serde_json::json!({"name": "two", "base": base_id, "dictionaries": [dict, dict]}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
+    let del = |uri: String| req(Method::DELETE, &uri, None, Vec::new());
+    assert_eq!(
+        send(&app, del(format!("/admin/dictionaries/{dict}")))
+            .await
+            .0,
+        StatusCode::CONFLICT
+    );
+    assert_eq!(
+        send(&app, del(format!("/admin/exemplars/{base_id}")))
+            .await
+            .0,
+        StatusCode::CONFLICT
+    );
+    assert_eq!(
+        send(&app, del("/admin/worlds/mini".into())).await.0,
+        StatusCode::CONFLICT
+    );
+    assert_eq!(
+        send(&app, del("/admin/worlds/nope".into())).await.0,
+        StatusCode::NOT_FOUND
+    );
+    assert_eq!(
+        send(&app, del(format!("/admin/jobs/{job}"))).await.0,
+        StatusCode::CONFLICT
+    );
+    assert_eq!(
+        send(&app, del("/admin/jobs/nope".into())).await.0,
+        StatusCode::NOT_FOUND
+    );
+    // Deleting the world frees the dictionary and the base.
+    assert_eq!(
+        send(&app, del("/admin/worlds/mine".into())).await.0,
+        StatusCode::NO_CONTENT
+    );
+    assert_eq!(
+        send(&app, get("/tiles/mine/elevation/8/0/0.png")).await.0,
+        StatusCode::NOT_FOUND
+    );
+    assert_eq!(
+        send(&app, del(format!("/admin/dictionaries/{dict}")))
+            .await
+            .0,
+        StatusCode::NO_CONTENT
+    );
+    assert_eq!(
+        send(&app, anon(&format!("/dictionaries/{dict}"))).await.0,
+        StatusCode::NOT_FOUND
+    );
+    assert_eq!(
+        send(&app, del(format!("/admin/exemplars/{base_id}")))
+            .await
+            .0,
+        StatusCode::NO_CONTENT
+    );
+}
+
+#[tokio::test]
+async fn cancelled_and_queued_builds_leave_nothing_and_a_full_queue_is_503() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router_with(dir.path(), TOKEN, |c| c.build_queue = 1);
+    let ex = upload_tiff(&app, "big", 256, 256, 9).await;
+    let heavy = serde_json::json!({"name": "heavy", "exemplars": [ex], "atoms": 1024, "patch": 16,
+        "stride": 2, "learning": "medoids:50"});
+    let dicts_before = store_files(dir.path())
+        .keys()
+        .filter(|k| k.starts_with("dictionaries/"))
+        .count();
+    let mut accepted = Vec::new();
+    let mut refused = 0;
+    for _ in 0..3 {
+        let (st, h, body) = send(
+            &app,
+            json(Method::POST, "/admin/dictionaries", heavy.clone()),
+        )
+        .await;
+        if st == StatusCode::SERVICE_UNAVAILABLE {
+            refused += 1;
+            assert_eq!(h[header::RETRY_AFTER], "1");
+            problem_detail(st, &h, &body);
+        } else {
+            assert_eq!(st, StatusCode::ACCEPTED);
+            let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+            accepted.push(v["id"].as_str().unwrap().to_string());
+        }
+    }
+    assert!(
+        refused >= 1,
+        "a queue of 1 with one worker holds at most 2 heavy jobs"
+    );
+    // While a build uses the exemplar, it cannot be deleted.
+    let del = req(
+        Method::DELETE,
+        &format!("/admin/exemplars/{ex}"),
+        None,
+        Vec::new(),
+    );
+    assert_eq!(send(&app, del).await.0, StatusCode::CONFLICT);
+    for id in &accepted {
+        let (st, v) = send_json(
+            &app,
+            req(
+                Method::DELETE,
+                &format!("/admin/jobs/{id}"),
+                None,
+                Vec::new(),
+            ),
+        )
+        .await;
+        assert_eq!(st, StatusCode::ACCEPTED, "{v}");
+    }
+    for id in &accepted {
+        let v = wait_job(&app, id).await;
+        assert_eq!(v["state"], "cancelled", "{v}");
+        assert!(v["result"].is_null());
+    }
+    let dicts_after = store_files(dir.path())
+        .keys()
+        .filter(|k| k.starts_with("dictionaries/"))
+        .count();
+    assert_eq!(
+        dicts_after, dicts_before,
+        "a cancelled build left a dictionary"
+    );
+    assert!(std::fs::read_dir(dir.path().join("dictionaries"))
+        .unwrap()
+        .flatten()
+        .all(|e| !e.file_name().to_string_lossy().starts_with(".tmp")));
+}
+
+/// A GeoTIFF upload whose body arrives in two halves `stall` apart.
+fn slow_upload(stall: Duration) -> Request<Body> {
+    let bytes = geotiff_bytes(32, 32, 1);
+    let (head, tail) = bytes.split_at(bytes.len() / 2);
+    let parts = vec![head.to_vec(), tail.to_vec()];
+    let stream = futures_util::stream::unfold((0usize, parts), move |(i, parts)| async move {
+        if i == 1 {
+            tokio::time::sleep(stall).await;
+        }
+        let part = parts.get(i)?.clone();
+        Some((Ok::<_, std::io::Error>(part), (i + 1, parts)))
+    });
+    Request::builder()
+        .method(Method::POST)
+        .uri("/admin/exemplars?name=slow")
+        .header(header::AUTHORIZATION, format!("Bearer {TOKEN}"))
+        .header(header::CONTENT_TYPE, "image/tiff")
+        .body(Body::from_stream(stream))
+        .unwrap()
+}
+
+#[tokio::test]
+async fn uploads_have_their_own_timeout() {
+    // `request_timeout_s` = 1 bounds tile and metadata requests; an upload whose body takes 2 s
+    // to arrive is accepted under the default `upload_timeout_s` (an hour) ...
+    let store = tempfile::tempdir().unwrap();
+    let app = router_with(store.path(), TOKEN, |s| s.request_timeout_s = 1);
+    let (st, v) = send_json(&app, slow_upload(Duration::from_secs(2))).await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    // ... and answered 503, storing nothing, when `upload_timeout_s` is 1 s too.
+    let store = tempfile::tempdir().unwrap();
+    let app = router_with(store.path(), TOKEN, |s| {
+        s.request_timeout_s = 1;
+        s.upload_timeout_s = 1;
+    });
+    let before = store_files(store.path());
+    let (st, _) = send_json(&app, slow_upload(Duration::from_secs(2))).await;
+    assert_eq!(st, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(store_files(store.path()), before);
+}
+
+/// Issue #11's bugs, fixed: a dictionary built through the API carries the species layers of the
+/// request (or of the default world), and a world created through the API uses its own materials
+/// and species for splat, colour and vegetation.
+#[tokio::test]
+async fn api_dictionaries_and_worlds_use_their_own_species_and_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let exemplar = upload_tiff(&app, "hills", 96, 96, 5).await;
+    // A dictionary for one species of its own, without niche limits.
+    let (st, v) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/dictionaries",
+            serde_json::json!({"name": "mossy", "exemplars": [exemplar], "atoms": 16,
+                "patch": 16, "stride": 8, "species": [{"name": "moss", "colour": [0, 200, 0]}]}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::ACCEPTED, "{v}");
+    let done = wait_job(&app, v["id"].as_str().unwrap()).await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    let dict = done["result"].as_str().unwrap().to_string();
+    let (_, d) = send_json(&app, get(&format!("/dictionaries/{dict}"))).await;
+    assert_eq!(
+        d["layers"],
+        serde_json::json!(["log_area", "northness", "moss"])
+    );
+    // Bad species are refused at submission, naming the problem; nothing is queued or stored.
+    let before = store_files(dir.path());
+    let (st, v) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/dictionaries",
+            serde_json::json!({"name": "bad", "exemplars": [exemplar],
+                "species": [{"name": "a b"}]}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(v["detail"].as_str().unwrap().contains("species"), "{v}");
+    assert_eq!(store_files(dir.path()), before);
+
+    // Two worlds on the same base and dictionary: the default landscape, and one material
+    // (lava, no ranges: weight 1 everywhere) with two species of its own.
+    let base = upload_tiff(&app, "base", 64, 64, 6).await;
+    for (name, extra) in [
+        ("plain", serde_json::json!({})),
+        (
+            "lava",
+            serde_json::json!({"materials": [{"name": "lava", "colour": [200, 0, 0]}],
+                "species": [{"name": "moss", "colour": [0, 200, 0]},
+                    {"name": "lichen", "colour": [90, 90, 0]}]}),
+        ),
+    ] {
+        let mut body = serde_json::json!({"name": name, "base": base, "dictionaries": [dict],
+            "max_zoom": 12});
+        for (k, v) in extra.as_object().unwrap() {
+            body[k] = v.clone();
+        }
+        let (st, w) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+        assert_eq!(st, StatusCode::CREATED, "{w}");
+    }
+    let (_, w) = send_json(&app, get("/worlds/lava")).await;
+    let z = w["native_zoom"].as_u64().unwrap() as u8 + 1;
+    let (lon, lat) = (74.0 + 32.0 / 240.0, 42.5 - 32.0 / 240.0);
+    let (x, y) = tile_of(lon, lat, z);
+    let tile = |world: &str, layer: &str, ext: &str| {
+        let app = app.clone();
+        let uri = format!("/tiles/{world}/{layer}/{z}/{x}/{y}.{ext}");
+        async move {
+            let (st, _, body) = send(&app, get(&uri)).await;
+            assert_eq!(st, StatusCode::OK, "{uri}");
+            body
+        }
+    };
+    // Splat: every pixel of the lava world is wholly lava (channel R = 255, the others 0).
+    let (_, _, splat) = decode_rgba(&tile("lava", "splat", "png").await);
+    assert!(splat.chunks(4).all(|p| p == [255, 0, 0, 0]));
+    let (_, _, plain_splat) = decode_rgba(&tile("plain", "splat", "png").await);
+    assert!(plain_splat.chunks(4).any(|p| p != [255, 0, 0, 0]));
+    // Colour: lava's colour (200, 0, 0) shaded; green and blue stay 0. The default materials
+    // (snow, rock, meadow...) give other colours.
+    let (_, _, colour) = decode_rgba(&tile("lava", "color", "png").await);
+    assert!(colour
+        .chunks(4)
+        .all(|p| p[1] == 0 && p[2] == 0 && p[3] == 255));
+    assert!(colour.chunks(4).any(|p| p[0] > 100));
+    let (_, _, plain_colour) = decode_rgba(&tile("plain", "color", "png").await);
+    assert!(plain_colour.chunks(4).any(|p| p[1] > 0));
+    // Vegetation: a channel per species of the world, named after it (the decoder sorts them).
+    let channels =
+        terrasynth_tiles::decode_float_exr(&tile("lava", "vegetation", "exr").await).unwrap();
+    let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["lichen", "moss"]);
+    let plain =
+        terrasynth_tiles::decode_float_exr(&tile("plain", "vegetation", "exr").await).unwrap();
+    assert_eq!(plain.len(), 4);
+    // The definition is echoed and kept.
+    let (st, v) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds",
+            serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict],
+                "materials": [{"name": "x", "colour": [1, 2, 3], "slope": {"min": 9, "max": 1}}]}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(v["detail"].as_str().unwrap().contains("slope"), "{v}");
+}

@@ -1,0 +1,456 @@
+//! The `terrasynth` command line, run as a real process on real files: dictionary build, crop,
+//! amplify and eval, their outputs (sizes, georeference, extra layers, JSON fields) and their
+//! errors. Also the held-out quality check on real Tien Shan terrain (acceptance of issue #2).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use ndarray::Array2;
+use terrasynth_core::raster::{read_geotiff_file, write_geotiff_file, Georef, Grid, ReadLimits};
+
+use terrasynth_test_support::synthetic_terrain;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_terrasynth"))
+}
+
+fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("run terrasynth");
+    assert!(
+        out.status.success(),
+        "terrasynth failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn read(p: &Path) -> Grid {
+    read_geotiff_file(p, &ReadLimits::default()).expect("read output")
+}
+
+const TIENSHAN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/config/data/tienshan_west_gebco15s.tif"
+);
+
+/// Writes a synthetic EPSG:4326 exemplar near 41°N.
+fn write_exemplar(dir: &Path, rows: usize, cols: usize) -> PathBuf {
+    let g = Grid::new(
+        synthetic_terrain(rows, cols, 5),
+        Georef {
+            crs: terrasynth_core::raster::Crs::Epsg4326,
+            west: 70.0,
+            north: 41.5,
+            pixel_width: 1.0 / 240.0,
+            pixel_height: 1.0 / 240.0,
+        },
+    );
+    let p = dir.join("exemplar.tif");
+    write_geotiff_file(&g, &p).unwrap();
+    p
+}
+
+// --- build, amplify: sizes, georeference, layers, summary lines ---
+
+#[test]
+fn build_then_amplify_writes_finer_grids_with_the_same_bounds() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = write_exemplar(dir.path(), 120, 140);
+    let dict = dir.path().join("d.dict");
+    let summary = run_ok(
+        bin()
+            .args(["dictionary", "build", "--exemplar"])
+            .arg(&ex)
+            .args(["--output"])
+            .arg(&dict)
+            .args(["--atoms", "32", "--stride", "4", "--seed", "3"]),
+    );
+    assert!(summary.contains("32 atoms"), "{summary}");
+    assert!(
+        summary.contains("log_area") && summary.contains("northness"),
+        "{summary}"
+    );
+
+    let low = dir.path().join("low.tif");
+    run_ok(
+        bin()
+            .args(["crop", "--input"])
+            .arg(&ex)
+            .args(["--window", "8,4,64,48", "--down", "2", "--output"])
+            .arg(&low),
+    );
+    let low_grid = read(&low);
+    assert_eq!((low_grid.cols(), low_grid.rows()), (32, 24));
+
+    let out = dir.path().join("out.tif");
+    run_ok(
+        bin()
+            .args(["amplify", "--dictionary"])
+            .arg(&dict)
+            .arg("--input")
+            .arg(&low)
+            .args(["--levels", "2", "--output"])
+            .arg(&out),
+    );
+    let g = read(&out);
+    assert_eq!((g.cols(), g.rows()), (128, 96));
+    // Same bounds, cells 4× finer.
+    let (w0, s0, e0, n0) = low_grid.georef.bounds(32, 24);
+    let (w1, s1, e1, n1) = g.georef.bounds(128, 96);
+    for (a, b) in [(w0, w1), (s0, s1), (e0, e1), (n0, n1)] {
+        assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+    }
+    assert!((g.georef.pixel_width * 4.0 - low_grid.georef.pixel_width).abs() < 1e-12);
+    assert!(g.data.iter().all(|v| v.is_finite()));
+    for layer in ["log_area", "northness"] {
+        let p = dir.path().join(format!("out.{layer}.tif"));
+        let lg = read(&p);
+        assert_eq!(lg.data.dim(), g.data.dim(), "{layer}");
+    }
+    // Determinism across processes.
+    let out2 = dir.path().join("out2.tif");
+    run_ok(
+        bin()
+            .args(["amplify", "--dictionary"])
+            .arg(&dict)
+            .arg("--input")
+            .arg(&low)
+            .args(["--levels", "2", "--output"])
+            .arg(&out2),
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&out2).unwrap());
+}
+
+#[test]
+fn amplify_handles_nodata_and_epsg3857_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = write_exemplar(dir.path(), 100, 100);
+    let dict = dir.path().join("d.dict");
+    run_ok(
+        bin()
+            .args(["dictionary", "build", "--exemplar"])
+            .arg(&ex)
+            .arg("--output")
+            .arg(&dict)
+            .args(["--atoms", "16", "--stride", "6"]),
+    );
+    let mut z = synthetic_terrain(30, 30, 8);
+    z[[3, 4]] = f32::NAN;
+    let mut valid = Array2::from_elem((30, 30), true);
+    valid[[3, 4]] = false;
+    let g = Grid {
+        data: z,
+        georef: Georef {
+            crs: terrasynth_core::raster::Crs::Epsg3857,
+            west: 7_800_000.0,
+            north: 5_000_000.0,
+            pixel_width: 600.0,
+            pixel_height: 600.0,
+        },
+        valid: Some(valid),
+    };
+    let low = dir.path().join("low3857.tif");
+    write_geotiff_file(&g, &low).unwrap();
+    let out = dir.path().join("o.tif");
+    run_ok(
+        bin()
+            .args(["amplify", "--dictionary"])
+            .arg(&dict)
+            .arg("--input")
+            .arg(&low)
+            .args(["--levels", "1", "--output"])
+            .arg(&out),
+    );
+    let o = read(&out);
+    assert_eq!(o.georef.crs, terrasynth_core::raster::Crs::Epsg3857);
+    assert_eq!((o.cols(), o.rows()), (60, 60));
+    // The nodata cell stays nodata (its four children), every other cell is finite.
+    for r in 0..60 {
+        for c in 0..60 {
+            assert_eq!(o.is_valid(r, c), !(r / 2 == 3 && c / 2 == 4), "({r},{c})");
+        }
+    }
+}
+
+// --- errors: clear message, non-zero exit, no output file ---
+
+#[test]
+fn bad_input_fails_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("junk.tif");
+    std::fs::write(&junk, b"definitely not a tiff").unwrap();
+    let dict = dir.path().join("x.dict");
+    let out = bin()
+        .args(["dictionary", "build", "--exemplar"])
+        .arg(&junk)
+        .arg("--output")
+        .arg(&dict)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("terrasynth:"), "{err}");
+    assert!(!dict.exists());
+
+    // A corrupted dictionary is refused.
+    std::fs::write(&dict, b"TSDICT\0\x01garbage").unwrap();
+    let ex = write_exemplar(dir.path(), 40, 40);
+    let out = bin()
+        .args(["amplify", "--dictionary"])
+        .arg(&dict)
+        .arg("--input")
+        .arg(&ex)
+        .args(["--levels", "1", "--output"])
+        .arg(dir.path().join("o.tif"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(!dir.path().join("o.tif").exists());
+
+    // Unknown weight layer, zero levels.
+    let out = bin()
+        .args([
+            "amplify",
+            "--dictionary",
+            "nope.dict",
+            "--input",
+            "nope.tif",
+            "--levels",
+            "0",
+        ])
+        .args(["--output", "o.tif"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+}
+
+/// Absurd numbers (sums that overflow `usize`, zero or enormous factors, patch sides and
+/// iteration counts) are refused with a message naming them: exit code 1, never a panic (101),
+/// and no output file.
+#[test]
+fn absurd_numbers_are_clear_errors_not_panics() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = write_exemplar(dir.path(), 64, 64);
+    let out_tif = dir.path().join("c.tif");
+    let out_dict = dir.path().join("d.dict");
+    let max = usize::MAX.to_string();
+    let ex = ex.to_str().unwrap().to_string();
+    let cases: Vec<(Vec<String>, &str, &std::path::Path)> = vec![
+        (
+            vec![
+                "crop".into(),
+                "--window".into(),
+                format!("{max},0,10,10"),
+                "--down".into(),
+                "1".into(),
+            ],
+            "does not fit",
+            &out_tif,
+        ),
+        (
+            vec!["crop".into(), "--window".into(), format!("0,0,{max},{max}")],
+            "does not fit",
+            &out_tif,
+        ),
+        (
+            vec!["crop".into(), "--window".into(), format!("10,10,{max},4")],
+            "does not fit",
+            &out_tif,
+        ),
+        (
+            vec![
+                "crop".into(),
+                "--window".into(),
+                "0,0,16,16".into(),
+                "--down".into(),
+                max.clone(),
+            ],
+            "must divide",
+            &out_tif,
+        ),
+        (
+            vec![
+                "crop".into(),
+                "--window".into(),
+                "0,0,16,16".into(),
+                "--down".into(),
+                "0".into(),
+            ],
+            "must divide",
+            &out_tif,
+        ),
+        (
+            vec!["crop".into(), "--window".into(), "0,0,16".into()],
+            "COL,ROW,WIDTH,HEIGHT",
+            &out_tif,
+        ),
+        (
+            vec![
+                "dictionary".into(),
+                "build".into(),
+                "--patch".into(),
+                (usize::MAX - 3).to_string(),
+            ],
+            "patch size",
+            &out_dict,
+        ),
+        (
+            vec![
+                "dictionary".into(),
+                "build".into(),
+                "--patch".into(),
+                "0".into(),
+            ],
+            "patch",
+            &out_dict,
+        ),
+        (
+            vec![
+                "dictionary".into(),
+                "build".into(),
+                "--stride".into(),
+                "0".into(),
+            ],
+            "stride",
+            &out_dict,
+        ),
+        (
+            vec![
+                "dictionary".into(),
+                "build".into(),
+                "--learning".into(),
+                "medoids:4294967295".into(),
+            ],
+            "iterations",
+            &out_dict,
+        ),
+        (
+            vec![
+                "dictionary".into(),
+                "build".into(),
+                "--learning".into(),
+                "medoids:99999999999".into(),
+            ],
+            "medoids",
+            &out_dict,
+        ),
+        (
+            vec!["dictionary".into(), "build".into(), "--atoms=-1".into()],
+            "atoms",
+            &out_dict,
+        ),
+        (
+            vec![
+                "dictionary".into(),
+                "build".into(),
+                "--exclude".into(),
+                format!("{max},{max},{max},{max}"),
+                "--patch".into(),
+                "18446744073709551616".into(),
+            ],
+            "patch",
+            &out_dict,
+        ),
+    ];
+    for (args, needle, output) in cases {
+        let mut cmd = bin();
+        cmd.args(&args);
+        if args[0] == "crop" {
+            cmd.args(["--input", &ex]);
+        } else {
+            cmd.args(["--exemplar", &ex]);
+        }
+        let out = cmd.arg("--output").arg(output).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        let code = out.status.code();
+        assert!(
+            code == Some(1) || code == Some(2),
+            "{args:?}: exit {code:?} (a panic exits 101): {err}"
+        );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            err.contains(needle),
+            "{args:?}: `{err}` should mention `{needle}`"
+        );
+        assert!(!output.exists(), "{args:?} wrote {}", output.display());
+    }
+}
+
+// --- held-out quality on real terrain (issue #2, acceptance 3) ---
+
+#[test]
+fn amplifier_beats_baselines_on_held_out_tien_shan() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n);
+    let window = "1600,600,512,512";
+    run_ok(
+        bin()
+            .args(["crop", "--input", TIENSHAN, "--window", window, "--output"])
+            .arg(p("truth.tif")),
+    );
+    run_ok(
+        bin()
+            .args([
+                "crop", "--input", TIENSHAN, "--window", window, "--down", "4", "--output",
+            ])
+            .arg(p("low.tif")),
+    );
+    run_ok(
+        bin()
+            .args([
+                "dictionary",
+                "build",
+                "--default",
+                "--exclude",
+                window,
+                "--output",
+            ])
+            .arg(p("d.dict")),
+    );
+    run_ok(
+        bin()
+            .arg("amplify")
+            .arg("--dictionary")
+            .arg(p("d.dict"))
+            .arg("--input")
+            .arg(p("low.tif"))
+            .args(["--levels", "2", "--output"])
+            .arg(p("out.tif")),
+    );
+    let json = run_ok(
+        bin()
+            .arg("eval")
+            .arg("--truth")
+            .arg(p("truth.tif"))
+            .arg("--input")
+            .arg(p("low.tif"))
+            .arg("--output")
+            .arg(p("out.tif")),
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let m = |who: &str, k: &str| {
+        v[who][k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{who}.{k} in {json}"))
+    };
+    assert!(
+        m("amplified", "slope_wasserstein_deg") < m("bicubic", "slope_wasserstein_deg"),
+        "{json}"
+    );
+    let band = m("amplified", "band_energy_ratio");
+    assert!((0.5..=2.0).contains(&band), "band ratio {band}");
+    assert!(
+        m("bicubic", "band_energy_ratio") < 0.5,
+        "bicubic lacks the band: {json}"
+    );
+    assert!(
+        m("amplified", "flood_extent_error_pct") < m("bicubic_fbm", "flood_extent_error_pct"),
+        "{json}"
+    );
+    assert!(
+        m("amplified", "log_area_wasserstein") < m("bicubic_fbm", "log_area_wasserstein"),
+        "{json}"
+    );
+    assert!(m("amplified", "consistency_pct") < 1.0, "{json}");
+}

@@ -1,0 +1,153 @@
+//! End to end on the real binary and real sockets: `terrasynth serve` on the embedded default
+//! world builds its dictionary into a fresh store, serves plausible zoom-12 terrain over the
+//! Tien Shan, and two separately started processes return byte-identical tiles of every layer (at
+//! the native zoom and at amplified zooms). The second process reuses the store the first one filled.
+//! Issue #4's acceptance 3 and 4 on the default world, from tiles fetched over HTTP: vegetation
+//! follows the niche model on the served elevation, and drainage agrees with D8 on it.
+
+use ndarray::Array2;
+use terrasynth_core::landscape::LandscapeConfig;
+use terrasynth_tiles::{decode_float_exr, decode_terrarium_png};
+
+use crate::support::{proc, start as start_server, Server};
+use terrasynth_test_support::coherence;
+
+/// `terrasynth serve` on the default world with its store in `store`.
+fn start(store: &std::path::Path) -> Server {
+    start_server(&[], &[("TERRASYNTH_CACHE_MB", "256")], store)
+}
+
+fn fetch(server: &Server, path: &str) -> (u16, Vec<u8>) {
+    proc::get(server, path, None)
+}
+
+#[test]
+fn default_world_is_plausible_and_deterministic_across_processes() {
+    let store = tempfile::tempdir().unwrap();
+    // Zoom 12 over the Kyrgyz Ala-Too south of Bishkek (74.6°E, 42.55°N), zoom 8 (native), and
+    // zoom 10 (amplified), elevation and every landscape layer.
+    let paths = [
+        "/tiles/tienshan/elevation/12/2896/1512.png",
+        "/tiles/tienshan/elevation/8/181/94.png",
+        "/tiles/tienshan/elevation/10/724/378.png",
+        "/tiles/tienshan/hillshade/10/724/378.png",
+        // Every landscape layer, at the native zoom and an amplified one.
+        "/tiles/tienshan/vegetation/8/181/94.png",
+        "/tiles/tienshan/drainage/8/181/94.exr",
+        "/tiles/tienshan/vegetation/10/724/378.exr",
+        "/tiles/tienshan/vegetation/10/724/378.png",
+        "/tiles/tienshan/drainage/10/724/378.exr",
+        "/tiles/tienshan/drainage/10/724/378.png",
+        "/tiles/tienshan/splat/10/724/378.png?set=0",
+        "/tiles/tienshan/splat/10/724/378.png?set=1",
+        "/tiles/tienshan/color/10/724/378.png",
+    ];
+    let first: Vec<Vec<u8>> = {
+        let a = start(store.path());
+        let (status, json) = fetch(&a, "/worlds/tienshan");
+        assert_eq!(status, 200);
+        let v: serde_json::Value = serde_json::from_slice(&json).unwrap();
+        assert_eq!(v["native_zoom"], 8);
+        assert_eq!(v["maxzoom"], 16);
+        paths
+            .iter()
+            .map(|p| {
+                let (status, body) = fetch(&a, p);
+                assert_eq!(status, 200, "{p}");
+                body
+            })
+            .collect()
+    };
+    let heights = decode_terrarium_png(&first[0]).unwrap();
+    assert_eq!(heights.dim(), (256, 256));
+    let (lo, hi) = heights
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    // The Kyrgyz Ala-Too there rises from about 1000 m to over 4000 m.
+    assert!(
+        lo > 500.0 && hi < 5500.0 && hi - lo > 300.0,
+        "heights {lo}..{hi}"
+    );
+    // A second process (reusing the store the first filled) returns the same bytes.
+    let b = start(store.path());
+    for (p, want) in paths.iter().zip(&first) {
+        let (status, body) = fetch(&b, p);
+        assert_eq!(status, 200, "{p}");
+        assert!(body == *want, "{p} differs between processes");
+    }
+    // And the same bytes as the committed list recorded before the workspace move.
+    crate::tile_hashes::assert_default_world_tiles(&b);
+    // Errors on the real socket.
+    assert_eq!(fetch(&b, "/tiles/tienshan/elevation/17/0/0.png").0, 404);
+    assert_eq!(fetch(&b, "/tiles/tienshan/elevation/x/0/0.png").0, 400);
+}
+
+#[test]
+fn default_world_landscape_agrees_with_its_served_elevation() {
+    // A 4×4 mosaic of amplified zoom-10 tiles over the Talas range, decoded as a client would:
+    // terrarium elevation, the vegetation EXR (one named channel per species) and the drainage
+    // EXR (m²).
+    let store = tempfile::tempdir().unwrap();
+    let server = start(store.path());
+    let (z, x0, y0, n) = (10u8, 716u32, 379u32, 4u32);
+    let species = LandscapeConfig::tienshan().species;
+    let mut elev = Array2::zeros((256 * n as usize, 256 * n as usize));
+    let mut area = elev.clone();
+    let mut densities = vec![elev.clone(); species.len()];
+    let put = |dst: &mut Array2<f32>, dx: u32, dy: u32, t: &Array2<f32>| {
+        assert_eq!(t.dim(), (256, 256));
+        let (r, c) = (dy as usize * 256, dx as usize * 256);
+        dst.slice_mut(ndarray::s![r..r + 256, c..c + 256]).assign(t);
+    };
+    for dy in 0..n {
+        for dx in 0..n {
+            let (x, y) = (x0 + dx, y0 + dy);
+            let get = |layer: &str, ext: &str| {
+                let path = format!("/tiles/tienshan/{layer}/{z}/{x}/{y}.{ext}");
+                let (status, body) = fetch(&server, &path);
+                assert_eq!(status, 200, "{path}");
+                body
+            };
+            put(
+                &mut elev,
+                dx,
+                dy,
+                &decode_terrarium_png(&get("elevation", "png")).unwrap(),
+            );
+            let drainage = decode_float_exr(&get("drainage", "exr")).unwrap();
+            assert_eq!(drainage.len(), 1);
+            put(&mut area, dx, dy, &drainage[0].1);
+            let vegetation = decode_float_exr(&get("vegetation", "exr")).unwrap();
+            for (k, sp) in species.iter().enumerate() {
+                let (_, grid) = vegetation
+                    .iter()
+                    .find(|(name, _)| *name == sp.name)
+                    .unwrap_or_else(|| panic!("no {} channel", sp.name));
+                put(&mut densities[k], dx, dy, grid);
+            }
+        }
+    }
+    // Acceptance 3: Pearson ≥ 0.6 per species present, density < 0.05 where the niche excludes.
+    let wet = area.mapv(f32::log10);
+    let fits = coherence::vegetation_fit_of(&species, z, y0, &elev, &wet, &densities);
+    let mut tested = 0;
+    for f in &fits {
+        eprintln!("{f:?}");
+        assert!(f.worst_excluded < 0.05, "{f:?}");
+        if f.present > 0.02 {
+            assert!(f.pearson >= 0.6, "{f:?}");
+            tested += 1;
+        }
+    }
+    assert!(
+        tested >= 3,
+        "at least three species grow over the Talas range"
+    );
+    // Acceptance 4: Spearman ≥ 0.7 against D8 on the decoded elevation, channels walked across
+    // tile borders without a break.
+    let fit = coherence::drainage_fit_of(z, y0, &elev, &area);
+    eprintln!("{fit:?}");
+    assert!(fit.spearman >= 0.7, "{fit:?}");
+    assert!(fit.crossings >= 10, "{fit:?}");
+    assert!(fit.breaks.is_empty(), "{:?}", fit.breaks);
+}

@@ -1,0 +1,26 @@
+//! The root package's integration tests, in one binary (one link instead of seven):
+//!
+//! - [`server`]: the HTTP API on the real router via `oneshot` and the tile invariants of a
+//!   synthetic world (seamlessness, zoom consistency, determinism) for every layer;
+//! - [`admin`]: the admin API and catalogue via `oneshot` with a store in a temporary directory;
+//! - [`web`]: the web map's routes;
+//! - [`openapi`]: the committed OpenAPI description equals the generated one;
+//! - [`cli`]: the command line (the real binary);
+//! - [`e2e`]: `terrasynth serve` on a real socket on the default world;
+//! - [`admin_e2e`]: the admin flow, restarts and crashes on the real binary;
+//! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list.
+//!
+//! Shared helpers are in [`support`] and the `terrasynth-test-support` crate.
+
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod admin;
+mod admin_e2e;
+mod cli;
+mod e2e;
+mod openapi;
+mod server;
+mod support;
+mod tile_hashes;
+mod web;

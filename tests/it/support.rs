@@ -1,0 +1,53 @@
+//! Helpers of this test binary, written once: requests through `tower::ServiceExt::oneshot` on
+//! the real router, and `terrasynth serve` processes of this package's binary (the process
+//! machinery itself is `terrasynth_test_support::process`).
+
+use std::path::Path;
+
+use axum::body::{to_bytes, Body};
+use axum::http::{HeaderMap, Request, StatusCode};
+use tower::ServiceExt;
+
+pub use terrasynth_test_support::process::{self as proc, Server};
+
+/// Sends `req` to `app`; the status, headers and body.
+pub async fn send(app: &axum::Router, req: Request<Body>) -> (StatusCode, HeaderMap, Vec<u8>) {
+    let resp = app.clone().oneshot(req).await.unwrap();
+    let status = resp.status();
+    let headers = resp.headers().clone();
+    let body = to_bytes(resp.into_body(), 64 << 20).await.unwrap().to_vec();
+    (status, headers, body)
+}
+
+/// Sends `req` to `app`; the status and the body as JSON (`Null` when it is not JSON).
+pub async fn send_json(app: &axum::Router, req: Request<Body>) -> (StatusCode, serde_json::Value) {
+    let (st, _, body) = send(app, req).await;
+    (
+        st,
+        serde_json::from_slice(&body).unwrap_or(serde_json::Value::Null),
+    )
+}
+
+/// Starts this package's `terrasynth serve` in the package directory with extra `args` and
+/// environment `env`, its store in `store`, and waits for `/healthz`.
+pub fn start(args: &[&str], env: &[(&str, &str)], store: &Path) -> Server {
+    proc::start_binary(
+        Path::new(env!("CARGO_BIN_EXE_terrasynth")),
+        Path::new(env!("CARGO_MANIFEST_DIR")),
+        args,
+        env,
+        store,
+    )
+}
+
+/// Reads an RGBA PNG into rows × cols × 4 bytes.
+pub fn decode_rgba(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
+    let mut dec = png::Decoder::new(std::io::Cursor::new(bytes));
+    dec.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = dec.read_info().unwrap();
+    let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    buf.truncate(info.buffer_size());
+    (info.height as usize, info.width as usize, buf)
+}
