@@ -126,7 +126,7 @@ try {
 
   log(`opening ${base}/`);
   await page.goto(`${base}/`, { waitUntil: 'load' });
-  await page.waitForFunction(() => window.terrasynth && window.terrasynth.ready, null, { timeout: 60_000 });
+  await page.waitForFunction(() => window.terrasynth && window.terrasynth.ready, null, { timeout: IDLE_TIMEOUT_MS });
   await page.evaluate(() => window.terrasynth.ready);
   const hasTerrain = await page.evaluate(() => !!window.terrasynth.map.getTerrain());
   if (!hasTerrain) fail('the map has no 3D terrain');
