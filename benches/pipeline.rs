@@ -1,6 +1,8 @@
 //! Criterion benchmarks of the pipeline on deterministic real data (the embedded Tien Shan grid):
 //! matching (patches per second) and one amplification level (output points per second) with a
-//! warm default dictionary. Run with `cargo bench --bench pipeline`.
+//! warm default dictionary; OMP (codes per second at sparsity 1, 4 and 8 over the default
+//! dictionary's high-resolution atoms) and compact-terrain decoding (output points per second).
+//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact` for a part).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -127,9 +129,55 @@ fn bench(c: &mut Criterion) {
     }
 }
 
+fn bench_sparse(c: &mut Criterion) {
+    use terrasynth_core::dictionary::omp::{Omp, OmpScratch};
+    use terrasynth_core::synth::compact::compress;
+    let grid = embedded::tienshan().expect("embedded grid");
+    let base = grid.filled().expect("valid data");
+    let cell_m = grid.georef.cell_sizes(grid.rows()).mean_cell();
+    let dict = default_dictionary(&base, cell_m, true);
+    let atoms = terrasynth_core::synth::compact::unit_hi_atoms(&dict);
+    let p = dict.patch();
+    // 1024 real 16² windows, centred, as signals.
+    let signals: Vec<Vec<f32>> = (0..1024)
+        .map(|k| {
+            let (r, col) = (100 + (k / 32) * 53, 100 + (k % 32) * 79);
+            let w: Vec<f32> = base
+                .slice(s![r..r + p, col..col + p])
+                .iter()
+                .cloned()
+                .collect();
+            let mean = w.iter().sum::<f32>() / w.len() as f32;
+            w.iter().map(|v| v - mean).collect()
+        })
+        .collect();
+    let omp = Omp::new(&atoms, p * p);
+    let mut g = c.benchmark_group("omp/default-dictionary");
+    g.throughput(Throughput::Elements(signals.len() as u64));
+    for sparsity in [1usize, 4, 8] {
+        g.bench_with_input(BenchmarkId::from_parameter(sparsity), &sparsity, |b, &s| {
+            let mut scratch = OmpScratch::default();
+            b.iter(|| {
+                signals
+                    .iter()
+                    .map(|y| omp.code(y, s, &mut scratch).len())
+                    .sum::<usize>()
+            })
+        });
+    }
+    g.finish();
+    // Decoding a 1024² compact terrain (sparsity 4).
+    let crop = base.slice(s![600..1624, 1200..2224]).to_owned();
+    let terrain = compress(&crop, &atoms, p, 4, 32.0, 0);
+    let mut g = c.benchmark_group("compact/decode");
+    g.throughput(Throughput::Elements(crop.len() as u64));
+    g.bench_function("1024²,s=4", |b| b.iter(|| terrain.decode()));
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench
+    targets = bench, bench_sparse
 }
 criterion_main!(benches);

@@ -6,9 +6,10 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use terrasynth::cli::{amplify, build, crop, eval, CliError};
+use terrasynth::cli::{amplify, build, compact, crop, eval, CliError};
 use terrasynth::config::ConfigError;
 use terrasynth::server::StartupError;
+use terrasynth_core::dictionary::analytic::AnalyticKind;
 use terrasynth_core::dictionary::build::BuildOptions;
 use terrasynth_core::dictionary::{Learning, MatchWeights, PixelWindow};
 
@@ -34,6 +35,10 @@ enum Command {
     Eval(EvalCli),
     /// Cut a window out of a GeoTIFF, optionally box-down-sampling it.
     Crop(CropCli),
+    /// Write a DEM as a compact terrain (.sct): a sparse construction tree over dictionary atoms.
+    Compress(CompressCli),
+    /// Decode a compact terrain (.sct) into a float32 GeoTIFF.
+    Decompress(DecompressCli),
     /// Serve tiles over HTTP (the default command).
     Serve(ServeCli),
     /// Print the OpenAPI 3.1 description of the HTTP API (as committed in openapi/openapi.json).
@@ -82,15 +87,60 @@ struct BuildCli {
     /// Seed of every random choice.
     #[arg(long, default_value_t = BuildOptions::default().seed)]
     seed: u64,
-    /// Atom selection: `complete` or `medoids[:ITERATIONS]`.
+    /// Atom selection: `complete`, `medoids[:ITERATIONS]` or `ksvd[:ITERATIONS]`.
     #[arg(long, default_value = "medoids")]
     learning: Learning,
+    /// Atoms per code while learning with K-SVD.
+    #[arg(long, default_value_t = 1)]
+    sparsity: usize,
     /// Keep a window COL,ROW,WIDTH,HEIGHT of the exemplar out of the dictionary; repeatable.
     #[arg(long, value_name = "COL,ROW,WIDTH,HEIGHT")]
     exclude: Vec<PixelWindow>,
     /// Do not add the derived layers (log_area, northness).
     #[arg(long)]
     no_derived: bool,
+}
+
+#[derive(Args)]
+struct CompressCli {
+    /// Dictionary whose atoms write the terrain.
+    #[arg(long, value_name = "DICT")]
+    dictionary: Option<PathBuf>,
+    /// Procedural atoms (`perlin` or `ridged`) added to the dictionary's, or used alone.
+    #[arg(long, value_name = "KIND")]
+    analytic: Option<AnalyticKind>,
+    /// How many procedural atoms.
+    #[arg(long, default_value_t = 256)]
+    analytic_atoms: usize,
+    /// Atom side without a dictionary (even).
+    #[arg(long, default_value_t = 16)]
+    patch: usize,
+    /// The DEM (GeoTIFF, PNG16 or EXR).
+    #[arg(long, value_name = "DEM")]
+    input: PathBuf,
+    /// Atoms per primitive.
+    #[arg(long, default_value_t = 1)]
+    sparsity: usize,
+    /// Coefficient quantum, metres per unit-norm atom (default: half a metre per patch side).
+    #[arg(long)]
+    coef_quantum: Option<f32>,
+    /// Joint refinement passes after the first fit (each refits every primitive to what the
+    /// others leave).
+    #[arg(long, default_value_t = 3)]
+    passes: usize,
+    /// The compact terrain to write.
+    #[arg(long, value_name = "OUT.sct")]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct DecompressCli {
+    /// The compact terrain.
+    #[arg(long, value_name = "IN.sct")]
+    input: PathBuf,
+    /// The GeoTIFF to write.
+    #[arg(long, value_name = "OUT.tif")]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -165,6 +215,7 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
             atoms: args.atoms,
             learning: args.learning,
             seed: args.seed,
+            sparsity: args.sparsity,
         },
         no_derived: args.no_derived,
     };
@@ -256,6 +307,28 @@ fn run(cli: Cli) -> Result<(), Failure> {
             let json = serde_json::to_string_pretty(&report)
                 .map_err(|e| CliError::Usage(e.to_string()))?;
             println!("{json}");
+            Ok(())
+        }
+        Command::Compress(a) => {
+            let s = compact::run_compress(&compact::CompressArgs {
+                dictionary: a.dictionary,
+                analytic: a.analytic,
+                analytic_atoms: a.analytic_atoms,
+                patch: a.patch,
+                input: a.input,
+                sparsity: a.sparsity,
+                coef_quantum: a.coef_quantum,
+                passes: a.passes,
+                output: a.output,
+            })?;
+            let json =
+                serde_json::to_string_pretty(&s).map_err(|e| CliError::Usage(e.to_string()))?;
+            println!("{json}");
+            Ok(())
+        }
+        Command::Decompress(a) => {
+            let g = compact::run_decompress(&a.input, &a.output)?;
+            println!("wrote {} ({}×{})", a.output.display(), g.cols(), g.rows());
             Ok(())
         }
         Command::Crop(a) => {

@@ -125,6 +125,7 @@ fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dicti
         atoms: cfg.atoms,
         learning: Learning::Medoids { iterations: 6 },
         seed: cfg.seed,
+        sparsity: 1,
     };
     let t = Instant::now();
     let mut last = String::new();

@@ -377,6 +377,93 @@ fn absurd_numbers_are_clear_errors_not_panics() {
     }
 }
 
+// --- compact terrains: compress → decompress ---
+
+/// `compress` writes a `.sct` that `decompress` turns back into the grid whose fit `compress`
+/// reported (PSNR recomputed here from the files, by hand); corrupted files and bad settings
+/// are errors.
+#[test]
+fn compress_then_decompress_gives_the_reported_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = write_exemplar(dir.path(), 96, 112);
+    let dict = dir.path().join("d.dict");
+    run_ok(
+        bin()
+            .args(["dictionary", "build", "--exemplar"])
+            .arg(&ex)
+            .args(["--atoms", "32", "--patch", "8", "--stride", "4", "--output"])
+            .arg(&dict),
+    );
+    let sct = dir.path().join("t.sct");
+    let out = run_ok(
+        bin()
+            .args(["compress", "--dictionary"])
+            .arg(&dict)
+            .arg("--input")
+            .arg(&ex)
+            .args(["--sparsity", "2", "--output"])
+            .arg(&sct),
+    );
+    let summary: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let back = dir.path().join("back.tif");
+    run_ok(
+        bin()
+            .arg("decompress")
+            .arg("--input")
+            .arg(&sct)
+            .arg("--output")
+            .arg(&back),
+    );
+    let (truth, decoded) = (read(&ex), read(&back));
+    assert_eq!(decoded.data.dim(), truth.data.dim());
+    assert_eq!(decoded.georef, truth.georef);
+    let n = truth.data.len() as f64;
+    let mse = truth
+        .data
+        .iter()
+        .zip(decoded.data.iter())
+        .map(|(a, b)| f64::from(a - b).powi(2))
+        .sum::<f64>()
+        / n;
+    let (lo, hi) = truth
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let psnr = 20.0 * (f64::from(hi - lo) / mse.sqrt()).log10();
+    let reported = summary["psnr_db"].as_f64().unwrap();
+    assert!((psnr - reported).abs() < 0.01, "{psnr} vs {reported}");
+    assert!(psnr > 25.0, "{psnr}");
+    let bytes = std::fs::metadata(&sct).unwrap().len();
+    assert_eq!(summary["bytes"].as_u64(), Some(bytes));
+    assert!(bytes < 96 * 112 * 2, "{bytes} bytes");
+    // A flipped byte is refused by name; so is a sparsity of 0.
+    let mut b = std::fs::read(&sct).unwrap();
+    let mid = b.len() / 2;
+    b[mid] ^= 0x10;
+    std::fs::write(&sct, &b).unwrap();
+    let o = bin()
+        .arg("decompress")
+        .arg("--input")
+        .arg(&sct)
+        .arg("--output")
+        .arg(dir.path().join("x.tif"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("corrupted"));
+    let o = bin()
+        .args(["compress", "--dictionary"])
+        .arg(&dict)
+        .arg("--input")
+        .arg(&ex)
+        .args(["--sparsity", "0", "--output"])
+        .arg(dir.path().join("y.sct"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--sparsity 0"));
+}
+
 // --- held-out quality on real terrain (issue #2, acceptance 3) ---
 
 #[test]

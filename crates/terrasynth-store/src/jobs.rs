@@ -485,6 +485,7 @@ pub fn build_options(r: &DictionaryRequest) -> Result<BuildOptions, ServiceError
         atoms: r.atoms.unwrap_or(d.atoms),
         learning,
         seed: r.seed.unwrap_or(d.seed),
+        sparsity: 1,
     };
     if opts.patch < 4 || opts.patch > 64 || opts.patch % 4 != 0 {
         return Err(ServiceError::Invalid(format!(

@@ -76,6 +76,7 @@ fn small_dictionary_layers(seed: u64, vegetation: bool) -> Arc<Dictionary> {
         atoms: 64,
         learning: Learning::Medoids { iterations: 3 },
         seed,
+        sparsity: 1,
     };
     Arc::new(build(&[ex], &opts, &mut |_, _| {}).expect("build a small dictionary"))
 }

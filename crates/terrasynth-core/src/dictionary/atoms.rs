@@ -20,22 +20,30 @@ pub enum Learning {
         /// Number of assignment/update rounds.
         iterations: u32,
     },
+    /// Unconstrained learning (K-SVD): atoms are learned vectors, initialised from real patches
+    /// and refined for `iterations` rounds of sparse coding (the build's sparsity) and rank-1
+    /// atom updates; each atom carries the layers and statistics of the patch it started from.
+    Ksvd {
+        /// Number of coding/update rounds.
+        iterations: u32,
+    },
 }
 
 impl std::str::FromStr for Learning {
     type Err = String;
 
-    /// Parses `complete` or `medoids[:ITERATIONS]` (6 rounds by default).
+    /// Parses `complete`, `medoids[:ITERATIONS]` (6 rounds by default) or `ksvd[:ITERATIONS]`
+    /// (10 rounds by default).
     fn from_str(s: &str) -> Result<Self, String> {
+        let rounds = |n: &str| n.parse::<u32>().map_err(|e| format!("`{s}`: {e}"));
         match s.split_once(':') {
             None if s == "complete" => Ok(Learning::Complete),
             None if s == "medoids" => Ok(Learning::Medoids { iterations: 6 }),
-            Some(("medoids", n)) => n
-                .parse()
-                .map(|iterations| Learning::Medoids { iterations })
-                .map_err(|e| format!("`{s}`: {e}")),
+            None if s == "ksvd" => Ok(Learning::Ksvd { iterations: 10 }),
+            Some(("medoids", n)) => rounds(n).map(|iterations| Learning::Medoids { iterations }),
+            Some(("ksvd", n)) => rounds(n).map(|iterations| Learning::Ksvd { iterations }),
             _ => Err(format!(
-                "`{s}`: expected `complete` or `medoids[:ITERATIONS]`"
+                "`{s}`: expected `complete`, `medoids[:ITERATIONS]` or `ksvd[:ITERATIONS]`"
             )),
         }
     }
@@ -46,6 +54,7 @@ impl std::fmt::Display for Learning {
         match self {
             Learning::Complete => write!(f, "complete"),
             Learning::Medoids { iterations } => write!(f, "medoids:{iterations}"),
+            Learning::Ksvd { iterations } => write!(f, "ksvd:{iterations}"),
         }
     }
 }
@@ -65,6 +74,18 @@ pub struct DictionaryParams {
     pub seed: u64,
     /// Mean metric cell size of the exemplars' high-resolution grid, metres.
     pub cell_m: f64,
+    /// Atoms per code the dictionary was learned for (K-SVD); 1 otherwise. Not written when 1,
+    /// so dictionaries built before it existed keep their bytes and content ids.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub sparsity: usize,
+}
+
+fn one() -> usize {
+    1
+}
+
+fn is_one(v: &usize) -> bool {
+    *v == 1
 }
 
 impl DictionaryParams {

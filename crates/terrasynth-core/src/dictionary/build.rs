@@ -20,6 +20,7 @@ use rayon::prelude::*;
 use super::atoms::{AtomSource, Dictionary, DictionaryParams, LayerInfo, LayerKind, Learning};
 use super::error::DictionaryError;
 use super::features::{box_down2, centre_normalise, patch_mean_slope, MIN_RELIEF_M};
+use super::ksvd::ksvd;
 use super::rng::Rng;
 
 /// One exemplar terrain: elevation plus extra layers on the same grid.
@@ -49,6 +50,9 @@ pub struct BuildOptions {
     pub learning: Learning,
     /// Seed of every random choice. Default 1.
     pub seed: u64,
+    /// Atoms per code while learning with [`Learning::Ksvd`] (the other learnings code with one
+    /// atom). Default 1.
+    pub sparsity: usize,
 }
 
 impl Default for BuildOptions {
@@ -59,9 +63,13 @@ impl Default for BuildOptions {
             atoms: 256,
             learning: Learning::Medoids { iterations: 6 },
             seed: 1,
+            sparsity: 1,
         }
     }
 }
+
+/// Largest sparsity of a build or a code.
+pub const MAX_SPARSITY: usize = 64;
 
 /// Builds a dictionary from `exemplars`. `progress(stage, fraction)` is called with the stages
 /// `"patches"`, `"learning"` and `"done"` and a fraction in `0..=1` of that stage.
@@ -94,19 +102,6 @@ pub fn build_cancellable(
     } else {
         opts.atoms
     };
-    let mut selected: Vec<usize> = if want == n {
-        (0..n).collect()
-    } else {
-        match opts.learning {
-            Learning::Complete => evenly_spaced(n, want),
-            Learning::Medoids { iterations } => {
-                learn_medoids(&patches, want, iterations, opts.seed, cancel, progress)?
-            }
-        }
-    };
-    selected.sort_unstable();
-    check_cancel(cancel)?;
-    progress("learning", 1.0);
     let cell_m = exemplars.iter().map(|e| e.cell_m).sum::<f64>() / exemplars.len() as f64;
     let params = DictionaryParams {
         patch: opts.patch,
@@ -115,8 +110,58 @@ pub fn build_cancellable(
         learning: opts.learning,
         seed: opts.seed,
         cell_m,
+        sparsity: opts.sparsity,
     };
-    let dict = assemble(exemplars, params, layers, &patches, &selected);
+    let dict = match opts.learning {
+        Learning::Ksvd { iterations } if want < n => {
+            let mut seeds = init_plus_plus(
+                &patches,
+                want,
+                &mut Rng::new(opts.seed),
+                cancel,
+                progress,
+                0.2,
+            )?;
+            seeds.sort_unstable();
+            let training = hi_vectors(exemplars, &patches, opts.patch);
+            let p2 = opts.patch * opts.patch;
+            let mut init = Vec::with_capacity(seeds.len() * p2);
+            for &p in &seeds {
+                let h = &training[p * p2..(p + 1) * p2];
+                let norm = h.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>().sqrt();
+                init.extend(h.iter().map(|&v| (f64::from(v) / norm.max(1e-12)) as f32));
+            }
+            let learned = ksvd(
+                &training,
+                p2,
+                &init,
+                opts.sparsity,
+                iterations,
+                cancel,
+                &mut |f| progress("learning", 0.2 + 0.8 * f),
+            )?;
+            drop(training);
+            check_cancel(cancel)?;
+            progress("learning", 1.0);
+            assemble_learned(exemplars, params, layers, &patches, &seeds, &learned.atoms)
+        }
+        _ => {
+            let mut selected: Vec<usize> = if want == n {
+                (0..n).collect()
+            } else {
+                match opts.learning {
+                    Learning::Complete => evenly_spaced(n, want),
+                    Learning::Medoids { iterations } | Learning::Ksvd { iterations } => {
+                        learn_medoids(&patches, want, iterations, opts.seed, cancel, progress)?
+                    }
+                }
+            };
+            selected.sort_unstable();
+            check_cancel(cancel)?;
+            progress("learning", 1.0);
+            assemble(exemplars, params, layers, &patches, &selected)
+        }
+    };
     dict.check_consistency().map_err(|e| {
         DictionaryError::Malformed(format!("built dictionary is inconsistent: {e}"))
     })?;
@@ -150,10 +195,16 @@ fn validate(
     if opts.stride == 0 {
         return bad("stride must be at least 1".into());
     }
-    if let Learning::Medoids { iterations } = opts.learning {
+    if let Learning::Medoids { iterations } | Learning::Ksvd { iterations } = opts.learning {
         if iterations > 1000 {
             return bad(format!("{iterations} learning iterations exceeds 1000"));
         }
+    }
+    if opts.sparsity == 0 || opts.sparsity > MAX_SPARSITY {
+        return bad(format!(
+            "sparsity {} must lie between 1 and {MAX_SPARSITY}",
+            opts.sparsity
+        ));
     }
     let Some(first) = exemplars.first() else {
         return bad("no exemplar given".into());
@@ -670,6 +721,56 @@ fn assemble(
         d.lo_layers.extend_from_slice(&atom.lo_layers);
         d.hi_layers.extend_from_slice(&atom.hi_layers);
         d.sources.push(patches.sources[p]);
+    }
+    d
+}
+
+/// The high-resolution elevation of every patch, centred and scaled by its low statistics like
+/// an atom (`(X~ − a)/s`): `N × patch²`, patch-major — K-SVD's training vectors.
+fn hi_vectors(exemplars: &[Exemplar], patches: &Patches, patch: usize) -> Vec<f32> {
+    let p2 = patch * patch;
+    let mut out = vec![0.0f32; patches.sources.len() * p2];
+    out.par_chunks_mut(p2).enumerate().for_each(|(p, h)| {
+        let src = patches.sources[p];
+        let ex = &exemplars[src.exemplar as usize];
+        copy_window(&ex.elevation, src.row as usize, src.col as usize, patch, h);
+        let (a, s) = (f64::from(patches.mean[p]), f64::from(patches.relief[p]));
+        h.iter_mut()
+            .for_each(|v| *v = ((f64::from(*v) - a) / s) as f32);
+    });
+    out
+}
+
+/// A dictionary of learned high-resolution atoms (`learned`: unit-norm rows, one per seed
+/// patch): each atom's low-resolution version is its box down-sampling, and both are centred and
+/// scaled so that the low atom has unit norm (the invariant of every dictionary); its mean
+/// altitude, slope, relief, extra layers and provenance are those of the real patch it was
+/// initialised from. An atom without low-frequency content (which cannot be matched) is replaced
+/// by its seed patch.
+fn assemble_learned(
+    exemplars: &[Exemplar],
+    params: DictionaryParams,
+    layers: Vec<LayerInfo>,
+    patches: &Patches,
+    seeds: &[usize],
+    learned: &[f32],
+) -> Dictionary {
+    let patch = params.patch;
+    let lo = patch / 2;
+    let p2 = patch * patch;
+    let mut d = assemble(exemplars, params, layers, patches, seeds);
+    for (a, h) in learned.chunks(p2).enumerate() {
+        let mut lo_raw = vec![0.0f32; lo * lo];
+        box_down2(h, patch, &mut lo_raw);
+        let mut lo_norm = vec![0.0f32; lo * lo];
+        let (mean, norm) = centre_normalise(&lo_raw, &mut lo_norm);
+        if norm < 1e-6 {
+            continue;
+        }
+        d.lo_elev[a * lo * lo..(a + 1) * lo * lo].copy_from_slice(&lo_norm);
+        for (o, &v) in d.hi_elev[a * p2..(a + 1) * p2].iter_mut().zip(h) {
+            *o = (f64::from(v - mean) / f64::from(norm)) as f32;
+        }
     }
     d
 }

@@ -1,6 +1,7 @@
 //! Dictionaries: multi-resolution, multi-layer atoms cut from exemplars, their learning, their
 //! versioned binary format, and matching of low-resolution input patches against them.
 
+pub mod analytic;
 pub mod atoms;
 pub mod build;
 pub mod derive;
@@ -8,7 +9,9 @@ pub mod error;
 pub mod exemplar;
 pub mod features;
 pub mod format;
+pub mod ksvd;
 pub mod matching;
+pub mod omp;
 pub mod rng;
 
 pub use atoms::{AtomSource, Dictionary, DictionaryParams, LayerInfo, LayerKind, Learning};

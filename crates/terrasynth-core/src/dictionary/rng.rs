@@ -69,6 +69,30 @@ impl Rng {
         to_unit_f64(self.next_u64())
     }
 
+    /// A standard normal number (Box–Muller on two uniforms). It calls the platform's `ln` and
+    /// `cos`, so use it for test data and initialisations whose exact bits do not reach tiles.
+    pub fn normal(&mut self) -> f64 {
+        let u1 = 1.0 - self.next_f64();
+        let u2 = self.next_f64();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
+    /// `k` random unit-norm vectors of length `n` (Gaussian directions), row after row.
+    pub fn unit_rows(&mut self, k: usize, n: usize) -> Vec<f32> {
+        let mut out = Vec::with_capacity(k.saturating_mul(n));
+        for _ in 0..k {
+            let v: Vec<f64> = (0..n).map(|_| self.normal()).collect();
+            let norm = v
+                .iter()
+                .map(|x| x * x)
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE);
+            out.extend(v.iter().map(|x| (x / norm) as f32));
+        }
+        out
+    }
+
     /// A uniform integer in `0..n` (unbiased, Lemire's multiply-and-reject); 0 when `n` is 0.
     pub fn below(&mut self, n: u64) -> u64 {
         if n == 0 {

@@ -1,10 +1,14 @@
 //! Amplification: one ×2 level on a global lattice of primitives ([`level`]), the windows and
-//! fields it works on ([`field`]), and chains of levels from a base ([`chain`]). Everything is a
+//! fields it works on ([`field`]), and chains of levels from a base ([`chain`]); compact terrains
+//! on the same lattice (sparse construction trees, [`compact`], and their file format,
+//! [`compact_format`]). Everything is a
 //! pure function of the parent values, the dictionary and the requested pixels: no caching, no
 //! HTTP, no dependence on thread count.
 
 pub mod baselines;
 pub mod chain;
+pub mod compact;
+pub mod compact_format;
 pub mod error;
 pub mod field;
 pub mod level;

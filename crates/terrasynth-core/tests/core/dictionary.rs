@@ -53,6 +53,7 @@ fn opts(patch: usize, stride: usize, atoms: usize, learning: Learning) -> BuildO
         atoms,
         learning,
         seed: 5,
+        sparsity: 1,
     }
 }
 

@@ -47,6 +47,7 @@ fn random_dictionary(n: usize, values: &[f32], dups: usize) -> Dictionary {
             learning: Learning::Complete,
             seed: 0,
             cell_m: 100.0,
+            sparsity: 1,
         },
         layers: vec![
             LayerInfo {
