@@ -24,12 +24,17 @@ fn main() {
     if !lock.exists() || is_newer(&installed, &lock) {
         return;
     }
+    // Cargo shows a build script's output only when it ends: say afterwards what took the time.
+    let started = std::time::Instant::now();
     let status = Command::new("bash")
         .arg(root.join("scripts").join("install_web.sh"))
         .current_dir(&root)
         .status();
     match status {
-        Ok(s) if s.success() => {}
+        Ok(s) if s.success() => println!(
+            "cargo:warning=installed the web map's npm packages (MapLibre GL JS, playwright-core) with scripts/install_web.sh in {:.0} s; later builds skip it",
+            started.elapsed().as_secs_f64()
+        ),
         Ok(s) => println!(
             "cargo:warning=scripts/install_web.sh failed ({s}); the web map at / needs MapLibre: run it by hand"
         ),

@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 OUT=target/compact
 mkdir -p "$OUT"
 [[ "${1:-}" == "--no-build" ]] || cargo build --release --quiet
-B=target/release/terrasynth
+B=${TERRASYNTH_BIN:-target/release/terrasynth}
 T=config/data/tienshan_west_gebco15s.tif
 CROPS=("1600,600" "900,1300")
 EXCLUDE=()

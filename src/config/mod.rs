@@ -215,6 +215,9 @@ pub struct WorldConfig {
     /// Elevation outside the base coverage, metres.
     #[serde(default)]
     pub fill_m: f32,
+    /// Where map clients open, `[lon, lat]` (default: over the base's highest-relief region).
+    #[serde(default)]
+    pub center: Option<[f64; 2]>,
     /// Dictionary build settings.
     #[serde(default)]
     pub dictionary: DictionaryConfig,
@@ -261,15 +264,19 @@ fn read(path: &Path) -> Result<String, ConfigError> {
 pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, ConfigError> {
     let mut w: WorldConfig = parse(text, path)?;
     w.dir = dir.to_path_buf();
-    let ok = !w.name.is_empty()
-        && w.name.len() <= 64
-        && w.name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-    if !ok {
+    if !terrasynth_core::names::is_valid_name(&w.name) {
         return Err(ConfigError::Invalid(format!(
-            "{path}: world name `{}` must be 1–64 letters, digits, `-` or `_`",
-            w.name
+            "{path}: world name `{}` must be {}",
+            w.name,
+            terrasynth_core::names::NAME_RULE
+        )));
+    }
+    if w.center
+        .is_some_and(|c| !terrasynth_core::raster::georef::is_map_point(c))
+    {
+        return Err(ConfigError::Invalid(format!(
+            "{path}: center must be [lon, lat] with |lon| ≤ 180 and |lat| ≤ {}",
+            terrasynth_core::raster::georef::MAX_MERCATOR_LAT
         )));
     }
     w.landscape

@@ -76,8 +76,16 @@ pub enum StartupError {
         /// What went wrong.
         message: String,
     },
-    /// The listening address is in use or not available.
-    #[error("cannot listen on {addr}: {source}")]
+    /// Another process listens on the address.
+    #[error("{addr} is in use (is another terrasynth running?): set TERRASYNTH_LISTEN or pass --listen, e.g. --listen 127.0.0.1:8081")]
+    AddressInUse {
+        /// The address.
+        addr: String,
+    },
+    /// The listening address is not available.
+    #[error(
+        "cannot listen on {addr}: {source} (set TERRASYNTH_LISTEN or pass --listen HOST:PORT)"
+    )]
     Bind {
         /// The address.
         addr: String,

@@ -91,6 +91,7 @@ pub fn api_routes(admin: bool) -> OpenApiRouter<AppState> {
         .layer(CompressionLayer::new());
     let web = OpenApiRouter::new()
         .routes(routes!(web::index))
+        .routes(routes!(web::minimal))
         .routes(routes!(web::app_js))
         .routes(routes!(web::app_css))
         .routes(routes!(web::vendor))

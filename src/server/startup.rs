@@ -128,9 +128,27 @@ pub fn return_large_buffers_to_os() {
     }
 }
 
+/// Binds `addr`, with an error that says what to do when it is taken.
+async fn bind(addr: &str) -> Result<tokio::net::TcpListener, StartupError> {
+    tokio::net::TcpListener::bind(addr)
+        .await
+        .map_err(|source| match source.kind() {
+            std::io::ErrorKind::AddrInUse => StartupError::AddressInUse {
+                addr: addr.to_string(),
+            },
+            _ => StartupError::Bind {
+                addr: addr.to_string(),
+                source,
+            },
+        })
+}
+
 /// Loads the worlds (building dictionaries into the store if needed), binds `config.listen` and
 /// serves until SIGTERM/SIGINT, then drains in-flight requests.
 pub async fn serve(config: Config) -> Result<(), StartupError> {
+    // Fail before the worlds load (which may build dictionaries) when the address is taken;
+    // the real listener is bound once they are ready.
+    drop(bind(&config.server.listen).await?);
     let cfg = config.clone();
     let state = tokio::task::spawn_blocking(move || build_state(&cfg))
         .await
@@ -141,13 +159,7 @@ pub async fn serve(config: Config) -> Result<(), StartupError> {
     } else {
         tracing::info!("admin disabled: no admin token configured (set TERRASYNTH_ADMIN_TOKEN)");
     }
-    let addr = config.server.listen.clone();
-    let listener = tokio::net::TcpListener::bind(&addr)
-        .await
-        .map_err(|source| StartupError::Bind {
-            addr: addr.clone(),
-            source,
-        })?;
+    let listener = bind(&config.server.listen).await?;
     let local = listener
         .local_addr()
         .map_err(|e| StartupError::Runtime(e.to_string()))?;

@@ -17,6 +17,8 @@ use super::state::AppState;
 const INDEX_HTML: &str = include_str!("web/index.html");
 /// The page's script (an ES module).
 const APP_JS: &str = include_str!("web/app.js");
+/// The README's minimal MapLibre GL JS page (the browser test loads it, so it cannot rot).
+const MINIMAL_HTML: &str = include_str!("web/minimal.html");
 /// The page's style sheet.
 const APP_CSS: &str = include_str!("web/app.css");
 
@@ -33,6 +35,13 @@ fn text(body: &'static str, content_type: &'static str) -> Response {
     responses((status = 200, description = "HTML page", body = String, content_type = "text/html")))]
 pub async fn index() -> Response {
     text(INDEX_HTML, "text/html; charset=utf-8")
+}
+
+/// The README's minimal MapLibre GL JS page: 3D terrain and hillshade of the default world.
+#[utoipa::path(get, path = "/minimal.html", tag = "web", operation_id = "web_minimal",
+    responses((status = 200, description = "HTML page", body = String, content_type = "text/html")))]
+pub async fn minimal() -> Response {
+    text(MINIMAL_HTML, "text/html; charset=utf-8")
 }
 
 /// The web map's script.
@@ -69,6 +78,22 @@ pub fn vendor_content_type(name: &str) -> Option<&'static str> {
     }
 }
 
+/// Where the vendor files are read from: `configured`; or, when that is a relative path with
+/// nothing at it (a binary run from another directory, e.g. after `cargo install --path .`), the
+/// same path under the source tree the binary was built from, if it is still there.
+pub async fn vendor_dir(configured: &FsPath) -> std::path::PathBuf {
+    let is_dir = |p: std::path::PathBuf| async move {
+        tokio::fs::metadata(&p).await.is_ok_and(|m| m.is_dir())
+    };
+    if configured.is_relative() && !is_dir(configured.to_path_buf()).await {
+        let built_from = FsPath::new(env!("CARGO_MANIFEST_DIR")).join(configured);
+        if is_dir(built_from.clone()).await {
+            return built_from;
+        }
+    }
+    configured.to_path_buf()
+}
+
 /// A file of the MapLibre GL JS distribution (from `web_vendor_dir`).
 #[utoipa::path(get, path = "/vendor/maplibre-gl/{file}", tag = "web", operation_id = "web_vendor",
     params(("file" = String, Path, description = "A plain `.js`, `.mjs`, `.css` or `.map` file name")),
@@ -82,7 +107,7 @@ pub async fn vendor(
 ) -> Result<Response, ServerError> {
     let content_type = vendor_content_type(&file)
         .ok_or_else(|| ServerError::NotFound(format!("no vendor file `{file}`")))?;
-    let dir: &FsPath = &state.config.web_vendor_dir;
+    let dir = vendor_dir(&state.config.web_vendor_dir).await;
     let bytes = tokio::fs::read(dir.join(&file)).await.map_err(|_| {
         ServerError::NotFound(format!(
             "`{file}` is not in {}: run scripts/install_web.sh to install MapLibre GL JS",

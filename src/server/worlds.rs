@@ -193,6 +193,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
             weights: wc.weights.clone(),
             cache_bytes: config.server.level_cache_bytes(config.worlds.len()),
             landscape: wc.landscape.clone(),
+            center: wc.center,
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
@@ -206,12 +207,13 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
 pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, TileError> {
     let def = resolved.definition;
     World::new(WorldParts {
-        title: def.name.clone(),
-        attribution: String::new(),
+        title: def.title.clone().unwrap_or_else(|| def.name.clone()),
+        attribution: def.attribution.clone().unwrap_or_default(),
+        center: def.center,
         base: resolved.base,
         z_base: None,
         max_zoom: def.max_zoom,
-        fill_m: 0.0,
+        fill_m: def.fill_m,
         dictionary: resolved.dictionary,
         dictionary_id: resolved.dictionary_id,
         weights: def.match_weights(),

@@ -6,7 +6,8 @@
 // responses; elevation tiles and tiles of every overlay layer (colour, splat, vegetation,
 // drainage) requested and answered 200/304; the canvas is not blank (pixel variance above a
 // threshold) at the start and after a scripted fly-to at zoom 13; the readout shows a plausible
-// decoded elevation. Writes screenshots and the tile request sequence (a trace for
+// decoded elevation; the README's minimal page (/minimal.html) draws terrain without console
+// errors. Writes screenshots and the tile request sequence (a trace for
 // scripts/loadtest.sh --trace) to DIR.
 
 import fs from 'node:fs';
@@ -194,6 +195,18 @@ try {
   const h = parseFloat(readout.elevation);
   if (!(h > 200 && h < 7500)) fail(`readout elevation ${readout.elevation} is not a plausible Tien Shan height`);
   if (!(Math.abs(parseFloat(readout.lon) - 74.55) < 0.5)) fail(`readout longitude ${readout.lon} is not near the view`);
+
+  // The README's minimal MapLibre page, as the server serves it (the same file): terrain drawn,
+  // no console error (the listeners above stay on).
+  log(`opening ${base}/minimal.html`);
+  await page.goto(`${base}/minimal.html`, { waitUntil: 'load' });
+  await page.waitForFunction(() => !!window.map, null, { timeout: IDLE_TIMEOUT_MS });
+  await page.evaluate(() => { window.terrasynth = { map: window.map }; });
+  await waitIdle('minimal page');
+  await checkDrawn('minimal page');
+  const terrain = await page.evaluate(() => !!window.map.getTerrain());
+  if (!terrain) fail('minimal page: no 3D terrain');
+  await page.screenshot({ path: path.join(out, 'minimal.png'), timeout: SCREENSHOT_TIMEOUT_MS });
 } catch (e) {
   fail(`test aborted: ${e.message}`);
 } finally {

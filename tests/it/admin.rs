@@ -1145,3 +1145,109 @@ async fn api_dictionaries_and_worlds_use_their_own_species_and_materials() {
     assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
     assert!(v["detail"].as_str().unwrap().contains("slope"), "{v}");
 }
+
+/// A GeoTIFF (15″ cells, north-west corner 74° E 42.5° N) of a 500 m plain with one 2,500 m
+/// mountain centred at `(row, col)`.
+fn one_mountain_tiff(rows: usize, cols: usize, row: f64, col: f64) -> Vec<u8> {
+    let data = ndarray::Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let d2 = (r as f64 - row).powi(2) + (c as f64 - col).powi(2);
+        (500.0 + 2000.0 * (-d2 / 18.0).exp()) as f32
+    });
+    let grid = terrasynth_core::raster::Grid::new(data, terrasynth_test_support::georef_15s());
+    let mut out = std::io::Cursor::new(Vec::new());
+    terrasynth_core::raster::write_geotiff(&grid, &mut out).unwrap();
+    out.into_inner()
+}
+
+#[tokio::test]
+async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let exemplar = upload_tiff(&app, "hills", 96, 96, 5).await;
+    let (st, v) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/dictionaries",
+            serde_json::json!({"name": "d", "exemplars": [exemplar], "atoms": 16, "patch": 16,
+                "stride": 8}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::ACCEPTED, "{v}");
+    let done = wait_job(&app, v["id"].as_str().unwrap()).await;
+    let dict = done["result"].as_str().unwrap().to_string();
+    // The mountain stands in the north-east quarter, far from the base's middle (32, 32).
+    let (st, v) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=peak",
+            Some("image/tiff"),
+            one_mountain_tiff(64, 64, 12.0, 50.0),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    let base = v["id"].as_str().unwrap().to_string();
+    let body = serde_json::json!({"name": "peak", "base": base, "dictionaries": [dict],
+        "max_zoom": 11, "title": "One Peak", "attribution": "Survey of Nowhere, 2026",
+        "fill_m": -50.0});
+    let (st, w) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+    assert_eq!(st, StatusCode::CREATED, "{w}");
+    let (_, w) = send_json(&app, get("/worlds/peak")).await;
+    assert_eq!(w["title"], "One Peak");
+    assert_eq!(w["attribution"], "Survey of Nowhere, 2026");
+    assert_eq!(w["fill_m"], -50.0);
+    // The mountain's top is at 74° + 50.5/240, 42.5° − 12.5/240; the middle of the base at
+    // 74° + 32/240, 42.5° − 32/240. The map opens within 6 cells of the top.
+    let c: Vec<f64> = serde_json::from_value(w["center"].clone()).unwrap();
+    let (peak_lon, peak_lat) = (74.0 + 50.5 / 240.0, 42.5 - 12.5 / 240.0);
+    assert!(
+        (c[0] - peak_lon).abs() < 6.0 / 240.0 && (c[1] - peak_lat).abs() < 6.0 / 240.0,
+        "centre {c:?}, peak ({peak_lon}, {peak_lat})"
+    );
+    let (_, all) = send_json(&app, get("/worlds")).await;
+    let listed = all
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|w| w["name"] == "peak")
+        .unwrap();
+    assert_eq!(listed["title"], "One Peak");
+    for layer in ["elevation", "color"] {
+        let (_, tj) = send_json(&app, get(&format!("/tiles/peak/{layer}.json"))).await;
+        assert_eq!(tj["attribution"], "Survey of Nowhere, 2026", "{tj}");
+        assert_eq!(tj["name"], format!("One Peak {layer}"));
+        assert_eq!(tj["center"][0], c[0]);
+    }
+    let (_, style) = send_json(&app, get("/styles/peak.json")).await;
+    assert_eq!(style["name"], "One Peak");
+    assert_eq!(style["center"], serde_json::json!([c[0], c[1]]));
+    // The fill is served outside the base: a zoom-6 overview tile is mostly outside it.
+    let (x, y) = tile_of(74.0, 42.5, 6);
+    let (st, _, exr) = send(&app, get(&format!("/tiles/peak/elevation/6/{x}/{y}.exr"))).await;
+    assert_eq!(st, StatusCode::OK);
+    let ch = terrasynth_tiles::decode_float_exr(&exr).unwrap();
+    assert!(ch[0].1.iter().any(|&v| v == -50.0), "no fill pixel");
+    // A centre given is the centre served; bad values are refused by name.
+    let body = serde_json::json!({"name": "peak2", "base": base, "dictionaries": [dict],
+        "center": [74.05, 42.45]});
+    let (st, w) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+    assert_eq!(st, StatusCode::CREATED, "{w}");
+    let (_, w) = send_json(&app, get("/worlds/peak2")).await;
+    assert_eq!(w["center"][0], 74.05);
+    assert_eq!(w["center"][1], 42.45);
+    assert_eq!(w["title"], "peak2");
+    for (field, value) in [
+        ("center", serde_json::json!([200.0, 0.0])),
+        ("fill_m", serde_json::json!(1e9)),
+        ("title", serde_json::json!("  ")),
+    ] {
+        let mut body = serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict]});
+        body[field] = value;
+        let (st, v) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{field}: {v}");
+        assert!(v["detail"].as_str().unwrap().contains(field), "{v}");
+    }
+}

@@ -541,3 +541,28 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
     );
     assert!(m("amplified", "consistency_pct") < 1.0, "{json}");
 }
+
+#[test]
+fn a_port_in_use_is_reported_at_once_with_what_to_do() {
+    let held = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = held.local_addr().unwrap().to_string();
+    let store = tempfile::tempdir().unwrap();
+    // Before any world loads (no dictionary build in this fresh store), the server stops with a
+    // message for people, not an internal error.
+    let out = bin()
+        .args(["serve", "--listen", &addr])
+        .env("TERRASYNTH_STORE_DIR", store.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&format!("{addr} is in use")), "{err}");
+    assert!(
+        err.contains("--listen") && err.contains("TERRASYNTH_LISTEN"),
+        "{err}"
+    );
+    assert!(!err.contains("internal"), "{err}");
+    // Nothing was built into the store.
+    assert!(!store.path().join("objects").exists(), "{err}");
+    drop(held);
+}

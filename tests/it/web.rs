@@ -109,3 +109,53 @@ async fn a_missing_install_is_a_clear_404() {
     let (_, _, js) = get(&app, "/app.js").await;
     assert!(js.contains("scripts/install_web.sh"));
 }
+
+#[tokio::test]
+async fn the_readme_minimal_page_is_the_served_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let (st, h, body) = get(&app, "/minimal.html").await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "text/html; charset=utf-8");
+    let file = include_str!("../../src/server/web/minimal.html");
+    assert_eq!(body, file);
+    // The README shows the page whole, so that what a reader copies is what the browser test
+    // loads; and the page imports the module the server vendors.
+    let readme = include_str!("../../README.md");
+    assert!(
+        readme.contains(&format!("```html\n{file}```")),
+        "README's minimal page differs from src/server/web/minimal.html"
+    );
+    assert!(file.contains("/vendor/maplibre-gl/maplibre-gl.mjs"));
+}
+
+#[test]
+fn the_readme_world_file_recipe_parses_with_its_title_and_centre() {
+    let readme = include_str!("../../README.md");
+    let start = readme
+        .find("```toml\n# config/worlds/mine.toml")
+        .expect("the README's world-file recipe");
+    let body = &readme[start + "```toml\n".len()..];
+    let body = &body[..body.find("```").unwrap()];
+    let w =
+        terrasynth::config::parse_world(body, "mine.toml", std::path::Path::new("config/worlds"))
+            .unwrap();
+    assert_eq!(w.name, "mine");
+    assert_eq!(w.title, "My range");
+    assert_eq!(w.center, Some([74.5, 42.6]));
+    assert_eq!(w.max_zoom, 14);
+    assert_eq!(w.dictionary.atoms, 256);
+}
+
+#[test]
+fn a_world_file_centre_off_the_map_is_refused_by_name() {
+    let dir = std::path::Path::new("config/worlds");
+    for center in ["[200.0, 0.0]", "[0.0, 89.0]", "[nan, 0.0]"] {
+        let text = format!("name = \"w\"\nbase = \"b.tif\"\ncenter = {center}\n");
+        let err = terrasynth::config::parse_world(&text, "w.toml", dir).unwrap_err();
+        assert!(err.to_string().contains("center"), "{center}: {err}");
+    }
+    let ok =
+        terrasynth::config::parse_world("name = \"w\"\nbase = \"b.tif\"\n", "w.toml", dir).unwrap();
+    assert_eq!(ok.center, None);
+}

@@ -10,6 +10,7 @@ use utoipa::ToSchema;
 use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::{LandscapeConfig, Material, Species};
 use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
+use terrasynth_core::raster::georef::{is_map_point, MAX_MERCATOR_LAT};
 
 use crate::error::ServiceError;
 
@@ -36,6 +37,23 @@ pub struct WorldDefinition {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<Object>>)]
     pub species: Option<Vec<Species>>,
+    /// Human title shown by `/worlds`, TileJSON and the web map; absent: the name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub title: Option<String>,
+    /// Attribution (the data's source) shown by map clients.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attribution: Option<String>,
+    /// Elevation of pixels outside the base coverage, metres.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub fill_m: f32,
+    /// Where map clients open, `[lon, lat]`; absent: over the base's highest-relief region.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 2]>,
+}
+
+/// Whether a fill is the default (not written, so definitions stored before it read the same).
+fn is_zero(v: &f32) -> bool {
+    *v == 0.0
 }
 
 /// Materials of a stored definition: definitions written before materials were used held any
@@ -75,7 +93,26 @@ pub struct WorldRequest {
     #[serde(default)]
     #[schema(value_type = Option<Vec<Object>>)]
     pub species: Option<Vec<Species>>,
+    /// Human title (default: the name); at most 200 characters.
+    #[serde(default)]
+    pub title: Option<String>,
+    /// Attribution of the data shown by map clients; at most 1,000 characters.
+    #[serde(default)]
+    pub attribution: Option<String>,
+    /// Elevation of pixels outside the base coverage, metres (default 0; finite, within
+    /// ±12,000 m).
+    #[serde(default)]
+    pub fill_m: Option<f32>,
+    /// Where map clients open, `[lon, lat]` in degrees (default: the centre of the base's
+    /// highest-relief region).
+    #[serde(default)]
+    pub center: Option<[f64; 2]>,
 }
+
+/// Longest accepted title, characters.
+pub const MAX_TITLE_CHARS: usize = 200;
+/// Longest accepted attribution, characters.
+pub const MAX_ATTRIBUTION_CHARS: usize = 1000;
 
 /// What created worlds inherit: the default (first configured) world's settings.
 #[derive(Clone, Debug)]
@@ -145,7 +182,39 @@ impl WorldDefinition {
             weights: r.weights.unwrap_or_else(|| d.weights.clone()),
             materials: r.materials.unwrap_or_default(),
             species: r.species,
+            title: r.title,
+            attribution: r.attribution,
+            fill_m: r.fill_m.unwrap_or(0.0),
+            center: r.center,
         };
+        if def
+            .title
+            .as_ref()
+            .is_some_and(|t| t.trim().is_empty() || t.chars().count() > MAX_TITLE_CHARS)
+        {
+            return Err(ServiceError::Invalid(format!(
+                "title must be 1–{MAX_TITLE_CHARS} characters"
+            )));
+        }
+        if def
+            .attribution
+            .as_ref()
+            .is_some_and(|a| a.chars().count() > MAX_ATTRIBUTION_CHARS)
+        {
+            return Err(ServiceError::Invalid(format!(
+                "attribution must be at most {MAX_ATTRIBUTION_CHARS} characters"
+            )));
+        }
+        if !def.fill_m.is_finite() || def.fill_m.abs() > 12_000.0 {
+            return Err(ServiceError::Invalid(
+                "fill_m must be a finite elevation within ±12,000 m".into(),
+            ));
+        }
+        if def.center.is_some_and(|c| !is_map_point(c)) {
+            return Err(ServiceError::Invalid(format!(
+                "center must be [lon, lat] with |lon| ≤ 180 and |lat| ≤ {MAX_MERCATOR_LAT}"
+            )));
+        }
         if def.weights.values().any(|v| !v.is_finite() || *v < 0.0) {
             return Err(ServiceError::Invalid(
                 "weights must be finite and non-negative".into(),

@@ -155,6 +155,7 @@ pub fn mini_world(
         weights: terrasynth_core::dictionary::MatchWeights::default(),
         cache_bytes,
         landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
+        center: None,
     })
     .expect("a valid mini world")
 }

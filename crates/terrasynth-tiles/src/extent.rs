@@ -39,6 +39,53 @@ pub fn lonlat_bounds(g: &Grid) -> [f64; 4] {
     }
 }
 
+/// `[lon, lat]` of the centre of the base's highest-relief region: the square window (an eighth
+/// of the base's shorter side, at least 2 cells, moved by half its side) whose valid cells span
+/// the largest elevation range; the first such window in row-major order on ties. `None` when the
+/// base has no valid cell. Map clients open there: a newcomer sees mountains, not the
+/// geometric centre (which may be a plain).
+pub fn relief_center(base: &Grid) -> Option<[f64; 2]> {
+    let (rows, cols) = (base.rows(), base.cols());
+    let side = (rows.min(cols) / 8).max(2).min(rows.min(cols)).max(1);
+    let stride = (side / 2).max(1);
+    let starts = |n: usize| {
+        let last = n.saturating_sub(side);
+        let mut v: Vec<usize> = (0..=last).step_by(stride).collect();
+        if v.last() != Some(&last) {
+            v.push(last);
+        }
+        v
+    };
+    let mut best: Option<(f32, usize, usize)> = None;
+    for r0 in starts(rows) {
+        for c0 in starts(cols) {
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for r in r0..(r0 + side).min(rows) {
+                for c in c0..(c0 + side).min(cols) {
+                    if base.is_valid(r, c) {
+                        let v = base.data[[r, c]];
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
+                }
+            }
+            if hi >= lo && best.is_none_or(|(b, _, _)| hi - lo > b) {
+                best = Some((hi - lo, r0, c0));
+            }
+        }
+    }
+    let (_, r0, c0) = best?;
+    let half = side as f64 / 2.0 - 0.5;
+    let (x, y) = base.georef.pixel_centre(c0 as f64 + half, r0 as f64 + half);
+    Some(match base.georef.crs {
+        Crs::Epsg4326 => [x, y],
+        Crs::Epsg3857 => {
+            let (lon, lat) = mercator_to_lonlat(x, y);
+            [lon, lat]
+        }
+    })
+}
+
 impl Extent {
     /// The extent of `base` served up to `max_zoom`, with native zoom `z_base` (derived from the
     /// base's cell size when `None`). `max_zoom` must lie between the native zoom and 24.
@@ -110,12 +157,75 @@ impl Extent {
         )
     }
 
-    /// Centre `[lon, lat, zoom]` for map clients (zoom: two above the native zoom).
-    pub fn center(&self) -> [f64; 3] {
-        [
-            0.5 * (self.bounds[0] + self.bounds[2]),
-            self.ref_lat,
-            f64::from((self.z_base + 2).min(self.max_zoom)),
-        ]
+    /// The geometric centre `[lon, lat]` of the bounds.
+    pub fn middle(&self) -> [f64; 2] {
+        [0.5 * (self.bounds[0] + self.bounds[2]), self.ref_lat]
+    }
+
+    /// The zoom map clients open at: two above the native zoom.
+    pub fn opening_zoom(&self) -> u8 {
+        (self.z_base + 2).min(self.max_zoom)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::Array2;
+    use terrasynth_core::raster::Georef;
+
+    fn grid(data: Array2<f32>, crs: Crs, west: f64, north: f64, cell: f64) -> Grid {
+        Grid::new(
+            data,
+            Georef {
+                crs,
+                west,
+                north,
+                pixel_width: cell,
+                pixel_height: cell,
+            },
+        )
+    }
+
+    #[test]
+    fn the_relief_centre_finds_the_one_steep_region_in_either_crs() {
+        // A plain with one cliff block at rows 40..48, cols 8..16 of 64 × 64.
+        let data = Array2::from_shape_fn((64, 64), |(r, c)| {
+            if (40..48).contains(&r) && (8..16).contains(&c) {
+                3000.0
+            } else {
+                100.0
+            }
+        });
+        let g = grid(data.clone(), Crs::Epsg4326, 10.0, 50.0, 0.01);
+        let [lon, lat] = relief_center(&g).unwrap();
+        // Windows of 8 cells at a stride of 4: the chosen one overlaps the block, so its centre
+        // lies within 8 cells of the block's centre (12, 44).
+        assert!((lon - (10.0 + 12.0 * 0.01)).abs() <= 0.08, "{lon}");
+        assert!((lat - (50.0 - 44.0 * 0.01)).abs() <= 0.08, "{lat}");
+        // The same block in Web Mercator metres comes back in degrees.
+        let g = grid(data, Crs::Epsg3857, 1_000_000.0, 5_000_000.0, 1000.0);
+        let [lon, lat] = relief_center(&g).unwrap();
+        let (want_lon, want_lat) = mercator_to_lonlat(1_012_000.0, 4_956_000.0);
+        assert!((lon - want_lon).abs() < 0.08 && (lat - want_lat).abs() < 0.08);
+    }
+
+    #[test]
+    fn a_base_without_valid_cells_has_no_relief_centre() {
+        let g = grid(
+            Array2::from_elem((8, 8), f32::NAN),
+            Crs::Epsg4326,
+            0.0,
+            1.0,
+            0.1,
+        );
+        assert_eq!(relief_center(&g), None);
+        // A flat base: every window ties at 0; the first (north-west) one wins.
+        let g = grid(Array2::zeros((16, 16)), Crs::Epsg4326, 0.0, 1.0, 0.1);
+        let [lon, lat] = relief_center(&g).unwrap();
+        assert!(
+            (lon - 0.1).abs() < 1e-9 && (lat - 0.9).abs() < 1e-9,
+            "{lon} {lat}"
+        );
     }
 }

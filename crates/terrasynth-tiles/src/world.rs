@@ -17,7 +17,7 @@ use crate::base_layers::{base_layer_bytes, WholeWorld};
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
-use crate::extent::Extent;
+use crate::extent::{relief_center, Extent};
 use crate::materials;
 use crate::vegetation::{Inputs, VegetationLevels};
 
@@ -49,6 +49,9 @@ pub struct WorldParts {
     pub cache_bytes: u64,
     /// Landscape layers: species niches, materials, drainage style.
     pub landscape: LandscapeConfig,
+    /// Where map clients open, `[lon, lat]`; `None`: over the base's highest-relief region
+    /// ([`relief_center`]).
+    pub center: Option<[f64; 2]>,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -69,6 +72,8 @@ pub struct World {
     name: String,
     title: String,
     attribution: String,
+    /// Where map clients open, `[lon, lat]`.
+    center: [f64; 2],
     dictionary_id: String,
     fingerprint: String,
     landscape: Arc<LandscapeConfig>,
@@ -127,11 +132,16 @@ impl World {
             .cache_bytes
             .saturating_sub(base_bytes)
             .max(parts.cache_bytes / 4);
+        let center = parts
+            .center
+            .or_else(|| relief_center(&parts.base))
+            .unwrap_or_else(|| extent.middle());
         let landscape = Arc::new(parts.landscape);
         Ok(World {
             name: parts.name,
             title: parts.title,
             attribution: parts.attribution,
+            center,
             dictionary_id: parts.dictionary_id,
             fingerprint,
             elevation: ElevationLevels::new(
@@ -207,9 +217,14 @@ impl World {
         self.extent().bounds
     }
 
-    /// Centre `[lon, lat, zoom]` for map clients (zoom: two above the native zoom).
+    /// Where map clients open, `[lon, lat, zoom]`: the configured centre or the centre of the
+    /// base's highest-relief region, two zooms above the native zoom.
     pub fn center(&self) -> [f64; 3] {
-        self.extent().center()
+        [
+            self.center[0],
+            self.center[1],
+            f64::from(self.extent().opening_zoom()),
+        ]
     }
 
     /// Content ids of the dictionaries of the synthesis chain.

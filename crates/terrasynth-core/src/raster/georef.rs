@@ -8,6 +8,15 @@ pub const EARTH_RADIUS_M: f64 = 6_371_008.8;
 /// The WGS84 semi-major axis, which is the sphere radius of Web Mercator (metres).
 pub const MERCATOR_RADIUS_M: f64 = 6_378_137.0;
 
+/// Latitude limit of Web Mercator, degrees.
+pub const MAX_MERCATOR_LAT: f64 = 85.051_128_78;
+
+/// Whether `[lon, lat]` is a finite point on the Web Mercator map (|lon| ≤ 180°, |lat| ≤
+/// [`MAX_MERCATOR_LAT`]): the rule for user-given map centres.
+pub fn is_map_point([lon, lat]: [f64; 2]) -> bool {
+    lon.is_finite() && lat.is_finite() && lon.abs() <= 180.0 && lat.abs() <= MAX_MERCATOR_LAT
+}
+
 /// The coordinate reference systems terrasynth understands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Crs {
