@@ -26,6 +26,18 @@ const TINY: f64 = 1e-12;
 
 /// The naive reference: `atoms` is `k × n` (atom-major, each unit norm), `y` has `n` values.
 pub fn omp_naive(atoms: &[f32], n: usize, y: &[f32], sparsity: usize) -> SparseCode {
+    omp_naive_from(atoms, n, y, None, sparsity)
+}
+
+/// [`omp_naive`] whose first atom is `first` when given (chosen by another rule, e.g. the
+/// amplifier's matcher), the others chosen by the pursuit.
+pub fn omp_naive_from(
+    atoms: &[f32],
+    n: usize,
+    y: &[f32],
+    first: Option<usize>,
+    sparsity: usize,
+) -> SparseCode {
     let k = atoms.len().checked_div(n).unwrap_or(0);
     let atom = |j: usize| &atoms[j * n..(j + 1) * n];
     let norm_y = y
@@ -53,8 +65,9 @@ pub fn omp_naive(atoms: &[f32], n: usize, y: &[f32], sparsity: usize) -> SparseC
                 best = Some(j);
             }
         }
-        let Some(j) = best else { break };
-        if best_abs <= TINY * norm_y.max(f64::MIN_POSITIVE) {
+        let forced = first.filter(|&f| support.is_empty() && f < k);
+        let Some(j) = forced.or(best) else { break };
+        if forced.is_none() && best_abs <= TINY * norm_y.max(f64::MIN_POSITIVE) {
             break;
         }
         support.push(j);
@@ -194,6 +207,18 @@ impl Omp {
 
     /// The sparse code of `y` (length [`Omp::dim`]) with at most `sparsity` atoms.
     pub fn code(&self, y: &[f32], sparsity: usize, scratch: &mut OmpScratch) -> SparseCode {
+        self.code_from(y, None, sparsity, scratch)
+    }
+
+    /// [`Omp::code`] whose first atom is `first` when given (chosen by another rule, e.g. the
+    /// amplifier's matcher); the pursuit adds the others.
+    pub fn code_from(
+        &self,
+        y: &[f32],
+        first: Option<usize>,
+        sparsity: usize,
+        scratch: &mut OmpScratch,
+    ) -> SparseCode {
         let (n, k) = (self.n, self.k);
         let s = sparsity.min(k);
         let OmpScratch {
@@ -232,8 +257,9 @@ impl Omp {
                     best = Some(j);
                 }
             }
-            let Some(j) = best else { break };
-            if best_abs <= TINY * norm_y.max(f64::MIN_POSITIVE) {
+            let forced = first.filter(|&f| step == 0 && f < k);
+            let Some(j) = forced.or(best) else { break };
+            if forced.is_none() && best_abs <= TINY * norm_y.max(f64::MIN_POSITIVE) {
                 break;
             }
             // Extend the Cholesky factor: solve L w = G_{S,j}, then the new diagonal
@@ -398,6 +424,32 @@ mod tests {
                 prop_assert!(e <= last + 1e-9);
                 last = e;
             }
+        }
+
+        #[test]
+        fn a_forced_first_atom_is_kept_and_both_pursuits_agree(
+            k in 2usize..40, n in 2usize..24, s in 1usize..8, seed in any::<u64>(), f in any::<usize>()
+        ) {
+            let atoms = random_atoms(k, n, seed);
+            let mut rng = Rng::new(seed ^ 0xf1257);
+            let y: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
+            let first = f % k;
+            let naive = omp_naive_from(&atoms, n, &y, Some(first), s);
+            let fast = Omp::new(&atoms, n).code_from(&y, Some(first), s, &mut OmpScratch::default());
+            prop_assert_eq!(naive[0].0, first);
+            prop_assert_eq!(naive.len(), fast.len());
+            for (a, b) in naive.iter().zip(&fast) {
+                prop_assert_eq!(a.0, b.0);
+                prop_assert!((a.1 - b.1).abs() <= 1e-6 * (1.0 + a.1.abs()), "{:?} vs {:?}", a, b);
+            }
+            // With one atom the coefficient is the projection on the forced atom.
+            let one = omp_naive_from(&atoms, n, &y, Some(first), 1);
+            let dot: f64 = atoms[first * n..(first + 1) * n]
+                .iter()
+                .zip(&y)
+                .map(|(&a, &v)| f64::from(a) * f64::from(v))
+                .sum();
+            prop_assert!((one[0].1 - dot).abs() <= 1e-9 * (1.0 + dot.abs()));
         }
     }
 }
