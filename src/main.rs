@@ -123,6 +123,9 @@ struct EvalCli {
     /// The amplified result.
     #[arg(long, value_name = "OUT.tif")]
     output: PathBuf,
+    /// Also write hillshades of truth, bicubic, bicubic + fBm and output side by side to FILE.
+    #[arg(long, value_name = "FILE.png")]
+    picture: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -252,6 +255,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 truth: a.truth,
                 input: a.input,
                 output: a.output,
+                picture: a.picture,
             })?;
             let json = serde_json::to_string_pretty(&report)
                 .map_err(|e| CliError::Usage(e.to_string()))?;

@@ -426,8 +426,15 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
             .arg("--input")
             .arg(p("low.tif"))
             .arg("--output")
-            .arg(p("out.tif")),
+            .arg(p("out.tif"))
+            .arg("--picture")
+            .arg(p("picture.png")),
     );
+    // The picture: four 512-px hillshades with 8-px gaps, over a second row of enlargements.
+    let png = std::fs::read(p("picture.png")).unwrap();
+    let dims = |o: usize| u32::from_be_bytes(png[o..o + 4].try_into().unwrap());
+    assert_eq!(&png[1..4], b"PNG");
+    assert_eq!((dims(16), dims(20)), (4 * 512 + 3 * 8, 2 * 512 + 8));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let m = |who: &str, k: &str| {
         v[who][k]

@@ -12,6 +12,7 @@
 //! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
 //! - [`spectrum`]: FFT and radial band energy.
+//! - [`realism`]: pixel-axis anisotropy of the spectrum, drainage density, curvature values.
 //! - [`naive`]: slow reference implementations for tests.
 
 mod common;
@@ -21,6 +22,7 @@ pub mod flow;
 pub mod hillshade;
 pub mod metrics;
 pub mod naive;
+pub mod realism;
 pub mod spectrum;
 
 use thiserror::Error;
@@ -34,6 +36,9 @@ pub use flow::{
 };
 pub use hillshade::{hillshade, hillshade_u8, DEFAULT_ALTITUDE_DEG, DEFAULT_AZIMUTH_DEG};
 pub use metrics::{box_down, relief, rmse, wasserstein1};
+pub use realism::{
+    axis_anisotropy, curvature_values, drainage_density, ANISOTROPY_WEDGE_DEG, CHANNEL_AREA_M2,
+};
 pub use spectrum::{band_energy, dft_naive, fft, fft2, Complex};
 
 /// An error of an analysis function with preconditions on its arguments.

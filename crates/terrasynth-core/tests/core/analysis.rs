@@ -612,3 +612,77 @@ fn nan_cells_are_outlets() {
     let _ = analysis::aspect(&all_nan, &cs);
     let _ = analysis::band_energy(&all_nan, 0.0, 0.5);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Realism measures: pixel-axis anisotropy, drainage density
+// ---------------------------------------------------------------------------------------------
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, .. ProptestConfig::default() })]
+
+    /// The FFT-based anisotropy equals the naive DFT twin (plane by normal equations, wedges by
+    /// angle in degrees) on random grids of any size.
+    #[test]
+    fn axis_anisotropy_matches_naive(rows in 4usize..22, cols in 4usize..22, seed in any::<u64>()) {
+        let mut g = Lcg(seed);
+        let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
+            (g.next() * 50.0 + 3.0 * r as f64 - 2.0 * c as f64) as f32
+        });
+        let fast = analysis::axis_anisotropy(&z);
+        let slow = naive::axis_anisotropy(&z);
+        prop_assert!(
+            (fast.is_nan() && slow.is_nan()) || rel_close(fast, slow, 1e-9),
+            "{fast} vs {slow}"
+        );
+    }
+}
+
+/// White noise in [0, 100) from the test LCG.
+fn noise(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
+    let mut g = Lcg(seed);
+    Array2::from_shape_fn((rows, cols), |_| (g.next() * 100.0) as f32)
+}
+
+#[test]
+fn axis_anisotropy_sees_ribbing_and_ignores_planes() {
+    let white = noise(64, 64, 5);
+    let a_white = analysis::axis_anisotropy(&white);
+    assert!((0.6..1.6).contains(&a_white), "white noise {a_white}");
+    // A tilted plane adds nothing: it is detrended away.
+    let tilted = Array2::from_shape_fn((64, 64), |(r, c)| {
+        white[[r, c]] + 40.0 * r as f32 - 25.0 * c as f32
+    });
+    assert!((analysis::axis_anisotropy(&tilted) - a_white).abs() < 1e-6 * a_white);
+    // Ribs along the columns (frequency 0.4 cycles/pixel along x) dominate the axis wedge.
+    let ribbed = Array2::from_shape_fn((64, 64), |(r, c)| {
+        white[[r, c]] + 60.0 * (2.0 * std::f32::consts::PI * 0.4 * c as f32).cos()
+    });
+    assert!(analysis::axis_anisotropy(&ribbed) > 10.0 * a_white);
+    // The same ribs along a diagonal weigh on the other side of the ratio.
+    let diagonal = Array2::from_shape_fn((64, 64), |(r, c)| {
+        white[[r, c]] + 60.0 * (2.0 * std::f32::consts::PI * 0.3 * (r + c) as f32).cos()
+    });
+    assert!(analysis::axis_anisotropy(&diagonal) < 0.1 * a_white);
+    // Transposing a square grid swaps the two axes: same ratio.
+    let t = white.t().to_owned();
+    assert!((analysis::axis_anisotropy(&t) - a_white).abs() < 1e-9 * a_white);
+    assert!(analysis::axis_anisotropy(&Array2::zeros((3, 8))).is_nan());
+}
+
+#[test]
+fn drainage_density_of_an_eastward_plane() {
+    // Every row drains east along its own chain: cell c has (c + 1) cells upstream. With a
+    // threshold of 3 cells, columns 2..=8 carry a 100 m link each (column 9 is an outlet):
+    // 7 links × 100 m × 5 rows over 50 cells of 1e4 m² = 3.5 km / 0.5 km² = 7 km per km².
+    let z = plane(5, 10, 100.0, |x, _| -x);
+    let cs = CellSizes::uniform(5, 100.0);
+    let d = analysis::drainage_density(&z, &cs, 3e4);
+    assert!((d - 7.0).abs() < 1e-9, "{d}");
+    // A higher threshold (6 cells: columns 5..=8) shortens the network.
+    let d6 = analysis::drainage_density(&z, &cs, 6e4);
+    assert!((d6 - 4.0).abs() < 1e-9, "{d6}");
+    assert_eq!(
+        analysis::drainage_density(&Array2::zeros((0, 0)), &cs, 1.0),
+        0.0
+    );
+}
