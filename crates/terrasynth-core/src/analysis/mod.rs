@@ -6,6 +6,7 @@
 //! deterministic: single-threaded, fixed summation orders, no global state. Empty, tiny (< 3×3)
 //! and NaN-containing grids never panic.
 //!
+//! - [`breach`]: bounded, order-independent pit breaching (window-invariant).
 //! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
 //! - [`hillshade`](mod@hillshade): ESRI/GDAL hillshade.
 //! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent.
@@ -15,6 +16,7 @@
 //! - [`realism`]: pixel-axis anisotropy of the spectrum, drainage density, curvature values.
 //! - [`naive`]: slow reference implementations for tests.
 
+pub mod breach;
 mod common;
 pub mod derivatives;
 pub mod flood;
@@ -27,7 +29,8 @@ pub mod spectrum;
 
 use thiserror::Error;
 
-pub use common::next_up;
+pub use breach::breach_pits;
+pub use common::{next_down, next_up};
 pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
 pub use flow::{
