@@ -10,6 +10,7 @@
 #   OUT=dir           output directory (default target/realism)
 #   DICT_ARGS="..."   extra `dictionary build` arguments (e.g. "--atoms 1024")
 #   REUSE_DICT=1      keep an existing $OUT/heldout.dict
+#   DICT=file         use this held-out dictionary instead of building one
 #   BIN=path          terrasynth binary (default: cargo build --release, target/release/terrasynth)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,7 +34,9 @@ CROPS=(
     "steppe 768,0,512,512"
 )
 
-if [[ -z "${REUSE_DICT:-}" || ! -f "$OUT/heldout.dict" ]]; then
+if [[ -n "${DICT:-}" ]]; then
+    cp "$DICT" "$OUT/heldout.dict"
+elif [[ -z "${REUSE_DICT:-}" || ! -f "$OUT/heldout.dict" ]]; then
     ex=()
     for w in "${WINDOWS[@]}"; do ex+=(--exclude "$w"); done
     # shellcheck disable=SC2086

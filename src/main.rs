@@ -110,6 +110,9 @@ struct AmplifyCli {
     /// Matching weights, e.g. `elevation=0.8,altitude=0.1,slope=0.1`.
     #[arg(long, value_parser = amplify::parse_weights)]
     weights: Option<MatchWeights>,
+    /// Amplifier levers for ablations (see `synth::Levers::parse`; default: the served amplifier).
+    #[arg(long, hide = true, value_parser = terrasynth_core::synth::Levers::parse)]
+    levers: Option<terrasynth_core::synth::Levers>,
 }
 
 #[derive(Args)]
@@ -240,6 +243,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 levels: a.levels,
                 output: a.output,
                 weights: a.weights.unwrap_or_default(),
+                levers: a.levers.unwrap_or_default(),
             })?;
             println!(
                 "amplified to {}×{} in {:.2} s: {}",
