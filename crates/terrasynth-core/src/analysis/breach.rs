@@ -46,26 +46,25 @@ fn below(za: f32, ia: (i64, i64), zb: f32, ib: (i64, i64)) -> bool {
     za < zb || (za == zb && ia < ib)
 }
 
-/// Whether local cell `(r, c)` of `z` (not on its border) is a pit.
-fn is_pit(z: &Array2<f32>, origin: (i64, i64), r: usize, c: usize) -> bool {
-    let v = z[[r, c]];
+/// Whether cell `(r, c)` of the row-major `z` (`cols` wide; not on its border) is a pit.
+#[inline]
+fn is_pit(z: &[f32], cols: usize, origin: (i64, i64), r: usize, c: usize) -> bool {
+    let i = r * cols + c;
+    let v = z[i];
+    let (up, down) = (&z[i - cols - 1..i - cols + 2], &z[i + cols - 1..i + cols + 2]);
+    let (w, e) = (z[i - 1], z[i + 1]);
     // Fast path: a strictly lower neighbour settles it without indices.
-    let mut tie = false;
-    for &(dr, dc) in D8_OFFSETS.iter() {
-        let n = z[[(r as isize + dr) as usize, (c as isize + dc) as usize]];
-        if n < v {
-            return false;
-        }
-        tie |= n == v;
+    if up.iter().chain(down).any(|&n| n < v) || w < v || e < v {
+        return false;
     }
-    if !tie {
+    if !(up.iter().chain(down).any(|&n| n == v) || w == v || e == v) {
         return true;
     }
     let me = (origin.0 + r as i64, origin.1 + c as i64);
     D8_OFFSETS.iter().all(|&(dr, dc)| {
         let (nr, nc) = ((r as isize + dr) as usize, (c as isize + dc) as usize);
         let n = (origin.0 + nr as i64, origin.1 + nc as i64);
-        !below(z[[nr, nc]], n, v, me)
+        !below(z[nr * cols + nc], n, v, me)
     })
 }
 
@@ -97,41 +96,72 @@ impl PartialOrd for Item {
 /// The channel of one pit: cells of `z` with their channel values (the pit itself excluded).
 type Channel = Vec<((usize, usize), f32)>;
 
-/// Reusable buffers of the search over a `(2·radius + 1)²` box.
+/// Reusable buffers of the search over a `(2·radius + 1)²` box, framed by one sentinel cell on
+/// every side (so neighbours need no bounds test). Entries are valid for the current search only
+/// when their stamp equals its generation, so nothing is cleared between pits.
 struct Search {
     radius: usize,
+    /// Side of the framed box, `2·radius + 3`.
     side: usize,
     dist: Vec<f64>,
     pred: Vec<u32>,
-    done: Vec<bool>,
+    /// Generation in which `dist`/`pred` were last written.
+    seen: Vec<u32>,
+    /// Generation in which the cell was popped (sentinels: `u32::MAX`).
+    done: Vec<u32>,
+    generation: u32,
+    /// Neighbour offsets in the framed box and their length costs.
+    steps: [(isize, f64); 8],
     heap: BinaryHeap<Item>,
 }
 
 impl Search {
     fn new(radius: usize) -> Self {
-        let side = 2 * radius + 1;
+        let side = 2 * radius + 3;
+        let mut done = vec![0u32; side * side];
+        for r in 0..side {
+            for c in 0..side {
+                if r == 0 || c == 0 || r == side - 1 || c == side - 1 {
+                    done[r * side + c] = u32::MAX;
+                }
+            }
+        }
+        let steps = D8_OFFSETS.map(|(dr, dc)| {
+            let step = if dr != 0 && dc != 0 { DIAGONAL_STEP } else { 1.0 };
+            (dr * side as isize + dc, STEP_COST * step)
+        });
         Search {
             radius,
             side,
             dist: vec![f64::INFINITY; side * side],
             pred: vec![u32::MAX; side * side],
-            done: vec![false; side * side],
+            seen: vec![0u32; side * side],
+            done,
+            generation: 0,
+            steps,
             heap: BinaryHeap::new(),
         }
     }
 
-    /// The channel from pit `(r, c)` of `z` (at least `radius` cells from every edge), if a lower
-    /// cell lies within the radius.
-    fn channel(&mut self, z: &Array2<f32>, r: usize, c: usize) -> Option<Channel> {
+    /// The channel from pit `(r, c)` of the row-major `z` (`cols` wide; the pit at least
+    /// `radius` cells from every edge), if a strictly lower cell lies within the radius.
+    fn channel(&mut self, z: &[f32], cols: usize, r: usize, c: usize) -> Option<Channel> {
         let (side, radius) = (self.side, self.radius);
-        self.dist.fill(f64::INFINITY);
-        self.pred.fill(u32::MAX);
-        self.done.fill(false);
+        if self.generation >= u32::MAX - 1 {
+            // Stamps would collide with the sentinels: start afresh.
+            *self = Search::new(radius);
+        }
+        self.generation += 1;
+        let gen = self.generation;
         self.heap.clear();
-        let (r0, c0) = (r - radius, c - radius);
-        let zq = z[[r, c]];
-        let start = radius * side + radius;
+        // Framed-box cell (br, bc) is cell (r − radius − 1 + br, c − radius − 1 + bc) of z (the
+        // frame may lie one cell outside z; it is never read).
+        let base = (r * cols + c).wrapping_sub((radius + 1) * cols + radius + 1);
+        let at = |cell: usize| z[base.wrapping_add((cell / side) * cols + cell % side)];
+        let zq = z[r * cols + c];
+        let start = (radius + 1) * side + radius + 1;
         self.dist[start] = 0.0;
+        self.seen[start] = gen;
         self.heap.push(Item {
             cost: 0.0,
             cell: start as u32,
@@ -139,32 +169,23 @@ impl Search {
         let mut goal = None;
         while let Some(Item { cost, cell }) = self.heap.pop() {
             let cell = cell as usize;
-            if self.done[cell] {
+            if self.done[cell] == gen {
                 continue;
             }
-            self.done[cell] = true;
-            let (br, bc) = (cell / side, cell % side);
-            if z[[r0 + br, c0 + bc]] < zq {
+            self.done[cell] = gen;
+            if at(cell) < zq {
                 goal = Some(cell);
                 break;
             }
-            for &(dr, dc) in D8_OFFSETS.iter() {
-                let (nr, nc) = (br as isize + dr, bc as isize + dc);
-                if nr < 0 || nc < 0 || nr >= side as isize || nc >= side as isize {
+            for &(off, step_cost) in &self.steps {
+                let n = cell.wrapping_add_signed(off);
+                let stamp = self.done[n];
+                if stamp == gen || stamp == u32::MAX {
                     continue;
                 }
-                let n = nr as usize * side + nc as usize;
-                if self.done[n] {
-                    continue;
-                }
-                let zn = z[[r0 + nr as usize, c0 + nc as usize]];
-                let step = if dr != 0 && dc != 0 {
-                    DIAGONAL_STEP
-                } else {
-                    1.0
-                };
-                let nd = cost + ((f64::from(zn) - f64::from(zq)).max(0.0) + STEP_COST * step);
-                if nd < self.dist[n] {
+                let nd = cost + ((f64::from(at(n)) - f64::from(zq)).max(0.0) + step_cost);
+                if self.seen[n] != gen || nd < self.dist[n] {
+                    self.seen[n] = gen;
                     self.dist[n] = nd;
                     self.pred[n] = cell as u32;
                     self.heap.push(Item {
@@ -175,23 +196,25 @@ impl Search {
             }
         }
         let goal = goal?;
+        let (r0, c0) = (r - radius, c - radius);
         let mut path = Vec::new();
         let mut cur = goal;
         while cur != start {
-            path.push((r0 + cur / side, c0 + cur % side));
+            // Never a frame cell: those are never pushed.
+            path.push((r0 + cur / side - 1, c0 + cur % side - 1));
             cur = self.pred[cur] as usize;
         }
         path.reverse();
-        profile(z, zq, &path)
+        profile(z, cols, zq, &path)
     }
 }
 
 /// The straight, strictly descending channel values of the cells of `path` before its end (the
 /// path starts next to a pit of value `zq` and ends at a strictly lower cell, which keeps its
 /// value), or `None` when `f32` cannot hold a strictly descending grade between them.
-fn profile(z: &Array2<f32>, zq: f32, path: &[(usize, usize)]) -> Option<Channel> {
+fn profile(z: &[f32], cols: usize, zq: f32, path: &[(usize, usize)]) -> Option<Channel> {
     let (&end, inner) = path.split_last()?;
-    let zn = z[end];
+    let zn = z[end.0 * cols + end.1];
     let n = path.len() as f64;
     let drop = f64::from(zq) - f64::from(zn);
     let mut prev = zq;
@@ -224,12 +247,16 @@ pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2
     if rows <= 2 * m || cols <= 2 * m {
         return Array2::zeros((rows.saturating_sub(2 * m), cols.saturating_sub(2 * m)));
     }
+    let flat = z.as_standard_layout();
+    let Some(v) = flat.as_slice() else {
+        return z.slice(s![m..rows - m, m..cols - m]).to_owned();
+    };
     // Pits whose channels can reach the inner window lie within `radius` of it.
     let pits: Vec<(usize, usize)> = (radius..rows - radius)
         .into_par_iter()
         .flat_map_iter(|r| {
             (radius..cols - radius)
-                .filter(move |&c| is_pit(z, origin, r, c))
+                .filter(move |&c| is_pit(v, cols, origin, r, c))
                 .map(move |c| (r, c))
         })
         .collect();
@@ -237,7 +264,7 @@ pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2
         .par_iter()
         .map_init(
             || Search::new(radius),
-            |s, &(r, c)| s.channel(z, r, c).unwrap_or_default(),
+            |s, &(r, c)| s.channel(v, cols, r, c).unwrap_or_default(),
         )
         .collect();
     let (ir, ic) = (rows - 2 * m, cols - 2 * m);
@@ -367,7 +394,9 @@ pub fn breach_pits_naive(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> 
                 }
             }
             path.reverse();
-            for (p, t) in profile(z, zq, &path).unwrap_or_default() {
+            let flat = z.as_standard_layout();
+            let v = flat.as_slice().unwrap_or(&[]);
+            for (p, t) in profile(v, cols, zq, &path).unwrap_or_default() {
                 if t < out[p] {
                     out[p] = t;
                 }
