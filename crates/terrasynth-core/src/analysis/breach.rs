@@ -51,7 +51,10 @@ fn below(za: f32, ia: (i64, i64), zb: f32, ib: (i64, i64)) -> bool {
 fn is_pit(z: &[f32], cols: usize, origin: (i64, i64), r: usize, c: usize) -> bool {
     let i = r * cols + c;
     let v = z[i];
-    let (up, down) = (&z[i - cols - 1..i - cols + 2], &z[i + cols - 1..i + cols + 2]);
+    let (up, down) = (
+        &z[i - cols - 1..i - cols + 2],
+        &z[i + cols - 1..i + cols + 2],
+    );
     let (w, e) = (z[i - 1], z[i + 1]);
     // Fast path: a strictly lower neighbour settles it without indices.
     if up.iter().chain(down).any(|&n| n < v) || w < v || e < v {
@@ -127,7 +130,11 @@ impl Search {
             }
         }
         let steps = D8_OFFSETS.map(|(dr, dc)| {
-            let step = if dr != 0 && dc != 0 { DIAGONAL_STEP } else { 1.0 };
+            let step = if dr != 0 && dc != 0 {
+                DIAGONAL_STEP
+            } else {
+                1.0
+            };
             (dr * side as isize + dc, STEP_COST * step)
         });
         Search {
@@ -325,7 +332,12 @@ pub fn breach_pits_naive(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> 
             }
             let zq = z[q];
             let inside = |a: (usize, usize)| {
-                a.0 + radius >= r && a.0 <= r + radius && a.1 + radius >= c && a.1 <= c + radius
+                // Neighbours of the frame wrap to huge indices: saturate, then the upper bound
+                // excludes them.
+                a.0.saturating_add(radius) >= r
+                    && a.0 <= r + radius
+                    && a.1.saturating_add(radius) >= c
+                    && a.1 <= c + radius
             };
             let is_goal = |a: (usize, usize)| z[a] < zq;
             let entry = |a: (usize, usize), step: f64| {
