@@ -160,6 +160,9 @@ struct AmplifyCli {
     /// Matching weights, e.g. `elevation=0.8,altitude=0.1,slope=0.1`.
     #[arg(long, value_parser = amplify::parse_weights)]
     weights: Option<MatchWeights>,
+    /// Amplifier levers for ablations (see `synth::Levers::parse`; default: the served amplifier).
+    #[arg(long, hide = true, value_parser = terrasynth_core::synth::Levers::parse)]
+    levers: Option<terrasynth_core::synth::Levers>,
 }
 
 #[derive(Args)]
@@ -173,6 +176,9 @@ struct EvalCli {
     /// The amplified result.
     #[arg(long, value_name = "OUT.tif")]
     output: PathBuf,
+    /// Also write hillshades of truth, bicubic, bicubic + fBm and output side by side to FILE.
+    #[arg(long, value_name = "FILE.png")]
+    picture: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -288,6 +294,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 levels: a.levels,
                 output: a.output,
                 weights: a.weights.unwrap_or_default(),
+                levers: a.levers.unwrap_or_default(),
             })?;
             println!(
                 "amplified to {}×{} in {:.2} s: {}",
@@ -303,6 +310,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 truth: a.truth,
                 input: a.input,
                 output: a.output,
+                picture: a.picture,
             })?;
             let json = serde_json::to_string_pretty(&report)
                 .map_err(|e| CliError::Usage(e.to_string()))?;

@@ -12,7 +12,7 @@ use terrasynth_core::dictionary::derive::derived_layers;
 use terrasynth_core::dictionary::format::read_dictionary;
 use terrasynth_core::dictionary::{Dictionary, MatchWeights};
 use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
-use terrasynth_core::synth::{amplify_chain, Amplifier, ClampedRaster, Window};
+use terrasynth_core::synth::{amplify_chain, Amplifier, ClampedRaster, Levers, Window};
 
 /// Extra layers by name.
 pub type NamedLayers = Vec<(String, Array2<f32>)>;
@@ -33,6 +33,8 @@ pub struct AmplifyArgs {
     pub output: PathBuf,
     /// Matching weights.
     pub weights: MatchWeights,
+    /// Amplifier levers (for ablations; [`Levers::default`] is what the server runs).
+    pub levers: Levers,
 }
 
 /// What an amplification produced.
@@ -67,6 +69,17 @@ pub fn amplify_grid(
     grid: &Grid,
     levels: u32,
 ) -> Result<(Grid, NamedLayers), CliError> {
+    amplify_grid_with(dict, weights, grid, levels, Levers::default())
+}
+
+/// [`amplify_grid`] with explicit amplifier levers.
+pub fn amplify_grid_with(
+    dict: &Arc<Dictionary>,
+    weights: &MatchWeights,
+    grid: &Grid,
+    levels: u32,
+    levers: Levers,
+) -> Result<(Grid, NamedLayers), CliError> {
     if levels == 0 || levels > 8 {
         return Err(CliError::Usage(format!(
             "--levels {levels}: expected 1 to 8"
@@ -95,7 +108,7 @@ pub fn amplify_grid(
         layers: derived.iter().map(|(n, a)| (n.clone(), a)).collect(),
     };
     let amps = (0..levels)
-        .map(|_| Amplifier::new(dict.clone(), weights))
+        .map(|_| Amplifier::new(dict.clone(), weights).map(|a| a.with_levers(levers)))
         .collect::<Result<Vec<_>, _>>()?;
     let factor = 1usize << levels;
     let too_large = || CliError::Usage(format!("{levels} levels make the output too large"));
@@ -142,7 +155,7 @@ pub fn run(args: &AmplifyArgs) -> Result<AmplifySummary, CliError> {
     let grid = raster
         .elevation()
         .ok_or_else(|| CliError::Usage("the input has no elevation layer".into()))?;
-    let (out, layers) = amplify_grid(&dict, &args.weights, &grid, args.levels)?;
+    let (out, layers) = amplify_grid_with(&dict, &args.weights, &grid, args.levels, args.levers)?;
     write_geotiff_file(&out, &args.output)?;
     let mut files = vec![args.output.display().to_string()];
     for (name, data) in layers {

@@ -1,10 +1,11 @@
 //! `terrasynth eval`: realism and fidelity metrics of an amplified DEM against the real terrain it
 //! should resemble, beside two baselines computed on the fly from the same low-resolution input:
-//! cell-centred bicubic, and bicubic plus slope-scaled fBm noise.
+//! cell-centred bicubic, and bicubic plus slope-scaled fBm noise. Optionally writes a picture:
+//! hillshades of the truth and the three candidates side by side.
 
 use std::path::PathBuf;
 
-use ndarray::Array2;
+use ndarray::{s, Array2};
 use serde::Serialize;
 
 use super::error::CliError;
@@ -24,6 +25,8 @@ pub struct EvalArgs {
     pub input: PathBuf,
     /// The amplified result.
     pub output: PathBuf,
+    /// Where to write the hillshade picture (truth, bicubic, bicubic + fBm, output), if wanted.
+    pub picture: Option<PathBuf>,
 }
 
 /// Metrics of one candidate against the truth.
@@ -43,6 +46,14 @@ pub struct Metrics {
     pub log_area_wasserstein: f64,
     /// RMSE of the box-down-sampled candidate against the input, percent of the input's relief.
     pub consistency_pct: f64,
+    /// 1-Wasserstein distance between curvature (negative Laplacian) distributions, 1/m.
+    pub curvature_wasserstein_per_m: f64,
+    /// Drainage density: km of channel (upstream area ≥ [`analysis::CHANNEL_AREA_M2`]) per km².
+    pub drainage_density_km_per_km2: f64,
+    /// Pixel-axis anisotropy of the high-frequency spectrum ([`analysis::axis_anisotropy`]).
+    pub axis_anisotropy: f64,
+    /// [`Metrics::axis_anisotropy`] divided by the truth's (1 = the truth's own).
+    pub anisotropy_vs_truth: f64,
 }
 
 /// The truth's own reference values.
@@ -54,6 +65,10 @@ pub struct TruthStats {
     pub band_energy: f64,
     /// Relief (max − min) of the input, metres.
     pub input_relief_m: f64,
+    /// Drainage density of the truth, km per km².
+    pub drainage_density_km_per_km2: f64,
+    /// Pixel-axis anisotropy of the truth.
+    pub axis_anisotropy: f64,
 }
 
 /// The full report printed by `eval`.
@@ -81,6 +96,9 @@ struct Reference<'a> {
     log_area: Vec<f64>,
     flood: f64,
     band: f64,
+    curvature: Vec<f64>,
+    drainage_density: f64,
+    anisotropy: f64,
     truth: &'a Array2<f32>,
 }
 
@@ -107,6 +125,7 @@ fn log_areas(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
 
 fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
     let flood = analysis::flood_extent(z);
+    let anisotropy = analysis::axis_anisotropy(z);
     let consistency = match analysis::box_down(z, reference.factor) {
         Ok(down) if reference.input_relief > 0.0 => {
             100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
@@ -131,6 +150,17 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
             &reference.log_area,
         ),
         consistency_pct: consistency,
+        curvature_wasserstein_per_m: analysis::wasserstein1(
+            &analysis::curvature_values(z, reference.cells),
+            &reference.curvature,
+        ),
+        drainage_density_km_per_km2: analysis::drainage_density(
+            z,
+            reference.cells,
+            analysis::CHANNEL_AREA_M2,
+        ),
+        axis_anisotropy: anisotropy,
+        anisotropy_vs_truth: anisotropy / reference.anisotropy,
     }
 }
 
@@ -138,6 +168,17 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
 /// must cover the same extent, `truth` and `output` at the same resolution, `input` coarser by an
 /// integer factor.
 pub fn evaluate(truth: &Grid, input: &Grid, output: &Grid) -> Result<EvalReport, CliError> {
+    evaluate_with_picture(truth, input, output, None)
+}
+
+/// [`evaluate`], also writing the hillshade picture to `picture` when given (see
+/// [`picture_png`]).
+pub fn evaluate_with_picture(
+    truth: &Grid,
+    input: &Grid,
+    output: &Grid,
+    picture: Option<&std::path::Path>,
+) -> Result<EvalReport, CliError> {
     if truth.data.dim() != output.data.dim() {
         return Err(CliError::Usage(format!(
             "truth is {}×{} but output is {}×{}",
@@ -175,17 +216,29 @@ pub fn evaluate(truth: &Grid, input: &Grid, output: &Grid) -> Result<EvalReport,
         log_area: log_areas(&truth_z, &cells),
         flood: analysis::flood_extent(&truth_z),
         band: band(&truth_z, factor),
+        curvature: analysis::curvature_values(&truth_z, &cells),
+        drainage_density: analysis::drainage_density(&truth_z, &cells, analysis::CHANNEL_AREA_M2),
+        anisotropy: analysis::axis_anisotropy(&truth_z),
         truth: &truth_z,
     };
     let coarse_cell = input.georef.cell_sizes(input.rows()).mean_cell();
     let bicubic = bicubic_upsample(&input_z, factor);
     let fbm = fbm_upsample(&input_z, factor, coarse_cell, FBM_SEED);
+    if let Some(path) = picture {
+        let bytes = picture_png(&[&truth_z, &bicubic, &fbm, &output_z], &cells)?;
+        std::fs::write(path, &bytes).map_err(|source| CliError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+    }
     Ok(EvalReport {
         factor,
         truth: TruthStats {
             flood_extent_pct: reference.flood,
             band_energy: reference.band,
             input_relief_m: input_relief,
+            drainage_density_km_per_km2: reference.drainage_density,
+            axis_anisotropy: reference.anisotropy,
         },
         amplified: metrics(&reference, &output_z),
         bicubic: metrics(&reference, &bicubic),
@@ -201,9 +254,70 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
             .elevation()
             .ok_or_else(|| CliError::Usage(format!("{}: no elevation layer", p.display())))
     };
-    evaluate(
+    evaluate_with_picture(
         &read(&args.truth)?,
         &read(&args.input)?,
         &read(&args.output)?,
+        args.picture.as_deref(),
     )
+}
+
+/// Gap between the picture's panels, pixels.
+const PICTURE_GAP: usize = 8;
+
+/// Mean slope (tan) the picture's vertical exaggeration aims at, so that low hills show as well
+/// as high ranges.
+const PICTURE_SLOPE: f64 = 0.3;
+
+/// A grey 8-bit PNG of hillshades (light from the north-west, 45° high) of `grids` (all of one
+/// shape, on `cells`), side by side in the given order, separated by white gaps. All panels share
+/// one vertical exaggeration, `PICTURE_SLOPE` over the first grid's mean slope, clamped to
+/// 1–10. A second row shows the centre quarter of each (half the width and height), enlarged ×2
+/// by pixel repetition, so fine detail can be judged.
+pub fn picture_png(grids: &[&Array2<f32>], cells: &CellSizes) -> Result<Vec<u8>, CliError> {
+    let Some(first) = grids.first() else {
+        return Err(CliError::Usage("no grid to picture".into()));
+    };
+    let (rows, cols) = first.dim();
+    if grids.iter().any(|g| g.dim() != (rows, cols)) || rows < 4 || cols < 4 {
+        return Err(CliError::Usage(
+            "the pictured grids must share one shape of at least 4×4".into(),
+        ));
+    }
+    let n = grids.len();
+    let too_large = || CliError::Usage("the picture would be too large".into());
+    let panel = cols.checked_add(PICTURE_GAP).ok_or_else(too_large)?;
+    let width = n
+        .checked_mul(panel)
+        .and_then(|w| w.checked_sub(PICTURE_GAP))
+        .ok_or_else(too_large)?;
+    let second_row = rows.checked_add(PICTURE_GAP).ok_or_else(too_large)?;
+    let height = second_row.checked_add(rows).ok_or_else(too_large)?;
+    let mut img = Array2::<u8>::from_elem((height, width), 255);
+    let (zr0, zc0) = (rows / 4, cols / 4);
+    let slope = analysis::slope(first, cells);
+    let mean_slope = slope.iter().map(|&v| f64::from(v)).sum::<f64>() / slope.len() as f64;
+    let exaggeration = if mean_slope > 0.0 {
+        (PICTURE_SLOPE / mean_slope).clamp(1.0, 10.0) as f32
+    } else {
+        1.0
+    };
+    let mut x0 = 0usize;
+    for g in grids {
+        let shade = analysis::hillshade_u8(
+            &g.mapv(|v| v * exaggeration),
+            cells,
+            analysis::DEFAULT_AZIMUTH_DEG,
+            analysis::DEFAULT_ALTITUDE_DEG,
+        );
+        let x1 = x0.checked_add(cols).ok_or_else(too_large)?;
+        img.slice_mut(s![..rows, x0..x1]).assign(&shade);
+        // The centre quarter, each pixel repeated 2×2 (integer division maps r to zr0 + r/2).
+        let zoomed = Array2::from_shape_fn((rows, cols), |(r, c)| {
+            shade[[zr0.saturating_add(r / 2), zc0.saturating_add(c / 2)]]
+        });
+        img.slice_mut(s![second_row.., x0..x1]).assign(&zoomed);
+        x0 = x0.saturating_add(panel);
+    }
+    terrasynth_tiles::encode_gray_png(&img).map_err(|e| CliError::Usage(format!("picture: {e}")))
 }

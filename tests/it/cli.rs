@@ -464,7 +464,7 @@ fn compress_then_decompress_gives_the_reported_fit() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--sparsity 0"));
 }
 
-// --- held-out quality on real terrain (issue #2, acceptance 3) ---
+// --- held-out quality on real terrain (issue #2, acceptance 3; issue #12) ---
 
 #[test]
 fn amplifier_beats_baselines_on_held_out_tien_shan() {
@@ -513,33 +513,65 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
             .arg("--input")
             .arg(p("low.tif"))
             .arg("--output")
-            .arg(p("out.tif")),
+            .arg(p("out.tif"))
+            .arg("--picture")
+            .arg(p("picture.png")),
     );
+    // The picture: four 512-px hillshades with 8-px gaps, over a second row of enlargements.
+    let png = std::fs::read(p("picture.png")).unwrap();
+    let dims = |o: usize| u32::from_be_bytes(png[o..o + 4].try_into().unwrap());
+    assert_eq!(&png[1..4], b"PNG");
+    assert_eq!((dims(16), dims(20)), (4 * 512 + 3 * 8, 2 * 512 + 8));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let m = |who: &str, k: &str| {
         v[who][k]
             .as_f64()
             .unwrap_or_else(|| panic!("{who}.{k} in {json}"))
     };
-    assert!(
-        m("amplified", "slope_wasserstein_deg") < m("bicubic", "slope_wasserstein_deg"),
-        "{json}"
-    );
+    // Issue #12: detail at the energy of real terrain, slopes and curvature closer to the truth's
+    // than either baseline, fewer closed depressions than bicubic, no grid ribbing.
     let band = m("amplified", "band_energy_ratio");
-    assert!((0.5..=2.0).contains(&band), "band ratio {band}");
+    assert!((0.8..=1.25).contains(&band), "band ratio {band}");
     assert!(
         m("bicubic", "band_energy_ratio") < 0.5,
         "bicubic lacks the band: {json}"
     );
+    for k in [
+        "slope_wasserstein_deg",
+        "curvature_wasserstein_per_m",
+        "log_area_wasserstein",
+    ] {
+        for base in ["bicubic", "bicubic_fbm"] {
+            assert!(m("amplified", k) < m(base, k), "{k} vs {base}: {json}");
+        }
+    }
+    assert!(m("amplified", "slope_wasserstein_deg") < 1.0, "{json}");
+    assert!(m("amplified", "log_area_wasserstein") < 0.06, "{json}");
     assert!(
-        m("amplified", "flood_extent_error_pct") < m("bicubic_fbm", "flood_extent_error_pct"),
+        m("amplified", "flood_extent_error_pct") < m("bicubic", "flood_extent_error_pct"),
+        "{json}"
+    );
+    let aniso = m("amplified", "anisotropy_vs_truth");
+    assert!(aniso.max(1.0 / aniso) < 1.3, "anisotropy {aniso}: {json}");
+    assert!(m("bicubic", "anisotropy_vs_truth") > 10.0, "{json}");
+    assert!(
+        m("amplified", "rmse_m") < 1.25 * m("bicubic", "rmse_m"),
+        "{json}"
+    );
+    assert!(m("amplified", "consistency_pct") < 0.5, "{json}");
+    // The truth's own figures are reported beside the candidates'.
+    assert!(
+        v["truth"]["axis_anisotropy"]
+            .as_f64()
+            .is_some_and(|a| a > 0.5 && a < 3.0),
         "{json}"
     );
     assert!(
-        m("amplified", "log_area_wasserstein") < m("bicubic_fbm", "log_area_wasserstein"),
+        v["truth"]["drainage_density_km_per_km2"]
+            .as_f64()
+            .is_some_and(|d| d > 0.0),
         "{json}"
     );
-    assert!(m("amplified", "consistency_pct") < 1.0, "{json}");
 }
 
 #[test]

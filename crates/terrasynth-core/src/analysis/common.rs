@@ -125,6 +125,13 @@ pub fn next_up(x: f32) -> f32 {
     }
 }
 
+/// The next representable `f32` below `x` (the mirror of [`next_up`]). NaN and `−∞` map to
+/// themselves.
+#[inline]
+pub fn next_down(x: f32) -> f32 {
+    -next_up(-x)
+}
+
 /// A key whose unsigned order is the numeric order of `x`, with NaN below everything (NaN cells
 /// are outlets and are processed first).
 #[inline]

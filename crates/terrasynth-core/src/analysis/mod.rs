@@ -6,14 +6,17 @@
 //! deterministic: single-threaded, fixed summation orders, no global state. Empty, tiny (< 3×3)
 //! and NaN-containing grids never panic.
 //!
+//! - [`breach`]: bounded, order-independent pit breaching (window-invariant).
 //! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
 //! - [`hillshade`](mod@hillshade): ESRI/GDAL hillshade.
 //! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent.
 //! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
 //! - [`spectrum`]: FFT and radial band energy.
+//! - [`realism`]: pixel-axis anisotropy of the spectrum, drainage density, curvature values.
 //! - [`naive`]: slow reference implementations for tests.
 
+pub mod breach;
 mod common;
 pub mod derivatives;
 pub mod flood;
@@ -21,11 +24,13 @@ pub mod flow;
 pub mod hillshade;
 pub mod metrics;
 pub mod naive;
+pub mod realism;
 pub mod spectrum;
 
 use thiserror::Error;
 
-pub use common::next_up;
+pub use breach::breach_pits;
+pub use common::{next_down, next_up};
 pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
 pub use flow::{
@@ -34,6 +39,9 @@ pub use flow::{
 };
 pub use hillshade::{hillshade, hillshade_u8, DEFAULT_ALTITUDE_DEG, DEFAULT_AZIMUTH_DEG};
 pub use metrics::{box_down, relief, rmse, wasserstein1};
+pub use realism::{
+    axis_anisotropy, curvature_values, drainage_density, ANISOTROPY_WEDGE_DEG, CHANNEL_AREA_M2,
+};
 pub use spectrum::{band_energy, dft_naive, fft, fft2, Complex};
 
 /// An error of an analysis function with preconditions on its arguments.

@@ -307,3 +307,88 @@ pub fn accumulate_sources(receivers: &Array2<u8>, sources: &Array2<f64>) -> Arra
     }
     acc
 }
+
+/// Pixel-axis anisotropy computed the slow way, as a reference for
+/// [`axis_anisotropy`](super::axis_anisotropy): the least-squares plane from the 3×3 normal
+/// equations (Cramer's rule), a Hann window, the naive 2D DFT, and wedges classified by the
+/// angle of each bin in degrees.
+pub fn axis_anisotropy(z: &Array2<f32>) -> f64 {
+    let (rows, cols) = z.dim();
+    if rows < 4 || cols < 4 {
+        return f64::NAN;
+    }
+    // Normal equations of v ≈ a + b·r + c·col.
+    let mut m = [[0.0f64; 3]; 3];
+    let mut y = [0.0f64; 3];
+    for r in 0..rows {
+        for c in 0..cols {
+            let x = [1.0, r as f64, c as f64];
+            let v = z[[r, c]] as f64;
+            for i in 0..3 {
+                y[i] += x[i] * v;
+                for j in 0..3 {
+                    m[i][j] += x[i] * x[j];
+                }
+            }
+        }
+    }
+    let det = |m: &[[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(&m);
+    let mut coef = [0.0f64; 3];
+    for (k, ck) in coef.iter_mut().enumerate() {
+        let mut mk = m;
+        for i in 0..3 {
+            mk[i][k] = y[i];
+        }
+        *ck = det(&mk) / d;
+    }
+    let hann =
+        |i: usize, n: usize| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+    let x = Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let plane = coef[0] + coef[1] * r as f64 + coef[2] * c as f64;
+        Complex::new(
+            (z[[r, c]] as f64 - plane) * hann(r, rows) * hann(c, cols),
+            0.0,
+        )
+    });
+    let f = dft2(&x, false);
+    let half = super::realism::ANISOTROPY_WEDGE_DEG;
+    let (mut axis, mut na, mut diag, mut nd) = (0.0, 0usize, 0.0, 0usize);
+    for r in 0..rows {
+        for c in 0..cols {
+            let fy = if 2 * r <= rows {
+                r as f64
+            } else {
+                r as f64 - rows as f64
+            } / rows as f64;
+            let fx = if 2 * c <= cols {
+                c as f64
+            } else {
+                c as f64 - cols as f64
+            } / cols as f64;
+            let radius = (fx * fx + fy * fy).sqrt();
+            if !(0.25..0.5).contains(&radius) {
+                continue;
+            }
+            let deg = fy.atan2(fx).to_degrees(); // (−180, 180]
+            let off_axis = (deg - 90.0 * (deg / 90.0).round()).abs();
+            let off_diag = (deg - 45.0 - 90.0 * ((deg - 45.0) / 90.0).round()).abs();
+            let p = f[[r, c]].norm_sqr();
+            if off_axis <= half {
+                axis += p;
+                na += 1;
+            } else if off_diag <= half {
+                diag += p;
+                nd += 1;
+            }
+        }
+    }
+    if na == 0 || nd == 0 || diag <= 0.0 {
+        return f64::NAN;
+    }
+    (axis / na as f64) / (diag / nd as f64)
+}

@@ -442,14 +442,13 @@ mod tests {
                 prop_assert_eq!(a.0, b.0);
                 prop_assert!((a.1 - b.1).abs() <= 1e-6 * (1.0 + a.1.abs()), "{:?} vs {:?}", a, b);
             }
-            // With one atom the coefficient is the projection on the forced atom.
+            // With one atom the coefficient is the projection on the forced atom, `⟨a, y⟩ / ⟨a, a⟩`
+            // (the f32 atoms are unit-norm only to rounding).
             let one = omp_naive_from(&atoms, n, &y, Some(first), 1);
-            let dot: f64 = atoms[first * n..(first + 1) * n]
-                .iter()
-                .zip(&y)
-                .map(|(&a, &v)| f64::from(a) * f64::from(v))
-                .sum();
-            prop_assert!((one[0].1 - dot).abs() <= 1e-9 * (1.0 + dot.abs()));
+            let a = &atoms[first * n..(first + 1) * n];
+            let dot: f64 = a.iter().zip(&y).map(|(&a, &v)| f64::from(a) * f64::from(v)).sum();
+            let aa: f64 = a.iter().map(|&a| f64::from(a) * f64::from(a)).sum();
+            prop_assert!((one[0].1 - dot / aa).abs() <= 1e-9 * (1.0 + (dot / aa).abs()));
         }
     }
 }

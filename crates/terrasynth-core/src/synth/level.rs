@@ -1,16 +1,26 @@
-//! One ×2 amplification level (DESIGN.md, methods 1 and 2).
+//! One ×2 amplification level (DESIGN.md, methods 1 and 2; issue #12).
 //!
 //! Level `L` is a pixel plane twice as fine as level `L−1`: pixel `x` of level `L` lies at parent
 //! coordinate `(x + 0.5)/2 − 0.5`, so the 2×2 block `{2k, 2k+1}²` sits on parent pixel `k`.
 //! Primitives stand on a *global* lattice of step `s = patch/2` (centre `c = s·i`, a pixel corner);
-//! primitive `i` reads the parent patch `[c/2 − patch/4, c/2 + patch/4)²`, matches it against the
-//! dictionary and reconstructs it over `[c − s, c + s)²` as a smooth part `(P_h·D_h,k) P_s U_k + P_a`
-//! (`U_k`: the Catmull-Rom up-sampling of the low atom) plus a detail part `P_s (D~_h,k − U_k)`,
-//! weighted by `α = (1 − r²)³`, `r = |p − c| / s`. Every pixel is covered by exactly 4 primitives
-//! and their contributions are added in lattice order, whatever window is requested, so a pixel's
-//! value does not depend on the window it is computed in (bit for bit). A residual correction then
-//! makes 2×2 box averages reproduce the parent closely: [`SMOOTH_PASSES`] passes of
-//! `F_L += Up(F_{L−1} − Down(F_L))` with a C¹ cubic `Up`.
+//! primitive `i` reads the parent patch `P = [c/2 − patch/4, c/2 + patch/4)²`, matches it against
+//! the dictionary and reconstructs it over `[c − s, c + s)²` as a smooth part
+//! `(P_h·D_h,k) P_s U_k + P_a` (`U_k`: the Catmull-Rom up-sampling of the low atom) plus a detail
+//! part `a·(D~_h,k − U_k)`, weighted by `α = (1 − r²)³`, `r = |p − c| / s`. The detail amplitude
+//! `a` follows the parent's own finest octave ([`Levers::roughness`]): `a` makes the detail's RMS
+//! `roughness · RMS(P − CR(box P))`, so each level adds the fraction of the octave above that real
+//! terrain carries, whatever the scale the atoms were cut at. Every pixel is covered by exactly 4
+//! primitives and their contributions are added in lattice order, whatever window is requested,
+//! so a pixel's value does not depend on the window it is computed in (bit for bit).
+//!
+//! A residual correction then makes 2×2 box averages reproduce the parent:
+//! [`Levers::passes`] passes of `F_L += Up(F_{L−1} − Down(F_L))` with a Kaiser-windowed sinc `Up`
+//! ([`kernel`](super::kernel)), whose images of the parent's spectrum are far weaker than a
+//! cubic's (those images were the ribbing along pixel rows and columns). Last, every pit of the
+//! level gets a channel to a lower cell within [`Levers::breach`] cells
+//! ([`breach_pits`](crate::analysis::breach::breach_pits)), an operation that reads a bounded
+//! neighbourhood only, so the level stays window-invariant. Extra dictionary layers are blended
+//! with `α` and corrected with the Catmull-Rom kernel in four passes.
 
 use std::sync::Arc;
 
@@ -19,29 +29,32 @@ use rayon::prelude::*;
 
 use super::error::SynthError;
 use super::field::{Field, Window};
+pub use super::kernel::KernelKind;
+use super::kernel::{
+    consistent_upsample_patch, finest_octave_rms, floor_div, upsample_patch, OctaveScratch,
+    UpKernel, CATMULL_ROM,
+};
+pub use super::levers::Levers;
+use crate::analysis::breach::{breach_margin, breach_pits};
 use crate::dictionary::features::{centre_normalise, patch_mean_slope};
 use crate::dictionary::matching::{unit_centred, MatchScratch, MatchWeights, Matcher, Query};
 use crate::dictionary::{Dictionary, LayerKind};
 use crate::raster::boxfilter::box2;
 
-/// Integer division rounding towards −∞.
-fn floor_div(a: i64, b: i64) -> i64 {
-    a.div_euclid(b)
-}
-
 /// The matched atom of one primitive.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Primitive {
     atom: usize,
-    /// `(P_h · D_h,k) · P_s`: the amplitude of the high-resolution atom.
+    /// `(P_h · D_h,k) · P_s`: the amplitude of the atom's smooth part.
     coef: f32,
     /// `P_a`: the mean altitude added back.
     mean: f32,
-    /// `P_s`: the amplitude of the atom's detail component. Detail scales with the parent's local
-    /// relief, not with how well the coarse shapes matched: scaling it by `P_h · D_h,k` too would
-    /// shrink fine detail wherever the match is imperfect (measured: band energy 0.44 instead of
-    /// 0.59 of the real terrain's on the held-out Tien Shan crop).
+    /// The amplitude of the atom's detail part: `P_s` in the baseline (detail scaled with the
+    /// parent's local relief, not with how well the coarse shapes matched), or the
+    /// [`Levers::roughness`] target over the atom's own detail RMS.
     detail_coef: f32,
+    /// `1 / mean slope` of the parent patch (0 when flat), for [`Levers::slope_mod`].
+    inv_slope: f32,
 }
 
 /// What [`Amplifier::blend`] reconstructs.
@@ -62,6 +75,16 @@ struct LatticeRange {
     j1: i64,
 }
 
+/// Correction passes of the extra dictionary layers and of [`Amplifier::upsample_layer`]
+/// (Catmull-Rom, as before issue #12: layers are smooth and carry no grid artefacts).
+const LAYER_PASSES: i64 = 4;
+
+/// Largest factor [`Levers::slope_mod`] multiplies an atom's detail by.
+const SLOPE_MOD_MAX: f32 = 3.0;
+
+/// Largest detail amplitude relative to the patch's relief `P_s` under [`Levers::roughness`].
+const MAX_DETAIL_PER_RELIEF: f32 = 4.0;
+
 /// One amplification level bound to a dictionary and matching weights.
 #[derive(Debug)]
 pub struct Amplifier {
@@ -71,73 +94,28 @@ pub struct Amplifier {
     step: usize,
     /// `patch × patch` blending weights `α`.
     alpha: Vec<f32>,
+    /// `patch × patch` detail blending weights `w = α^p` ([`Levers::blend_power`]).
+    walpha: Vec<f32>,
     /// `step × step`: `1 / Σ α` at each pixel offset inside a lattice cell.
     inv_norm: Vec<f32>,
-    /// `step × step`: `1 / √(Σ α²)` at each pixel offset: the variance-preserving normaliser of
+    /// `step × step`: `1 / √(Σ w²)` at each pixel offset: the variance-preserving normaliser of
     /// the detail component.
     inv_rms: Vec<f32>,
-    /// `n × patch²`: the smooth part of each high atom, the Catmull-Rom up-sampling of its low atom.
+    /// The levers this level runs with.
+    levers: Levers,
+    /// The residual correction's up-sampling kernel.
+    kernel: UpKernel,
+    /// `n × patch²`: the smooth part of each high atom, the Catmull-Rom up-sampling of its low atom
+    /// (consistent with it under [`Levers::consistent_split`]).
     smooth: Vec<f32>,
     /// `n × patch²`: the detail part of each high atom, `hi − smooth`.
     detail: Vec<f32>,
+    /// Per atom: the RMS of its detail part.
+    detail_rms: Vec<f32>,
     /// Whether extra dictionary layers are reconstructed too.
     with_layers: bool,
     /// Per dictionary layer: whether it is reconstructed (when `with_layers`).
     layer_mask: Vec<bool>,
-}
-
-/// Number of smooth residual-correction passes `F += Up(F_{L−1} − Down(F))`. Each pass shrinks the
-/// residual (the part of the parent the blend does not reproduce); four leave box averages within
-/// about 0.2 % of the input's relief. No exact (nearest-neighbour) pass follows: its 2×2 steps
-/// compound over levels into axis-aligned creases and spurious pits.
-pub const SMOOTH_PASSES: i64 = 4;
-
-/// Parent pixels of margin one smooth pass consumes on each side (the cubic kernel's reach).
-const PASS_MARGIN: i64 = 2;
-
-/// Catmull-Rom weights of a cell-centred ×2 up-sampling: child `2k` sits at parent coordinate
-/// `k − 1/4` and reads parents `k−2 .. k+1`; child `2k+1` (at `k + 1/4`) reads `k−1 .. k+2`. The
-/// kernel is C¹, so repeated up-sampling over levels leaves no creases along pixel lines (as
-/// bilinear interpolation does).
-const CUBIC_EVEN: [f32; 4] = [-0.0234375, 0.2265625, 0.8671875, -0.0703125];
-const CUBIC_ODD: [f32; 4] = [-0.0703125, 0.8671875, 0.2265625, -0.0234375];
-
-/// First parent tap and the four weights of child `x`.
-fn cubic_taps(x: i64) -> (i64, [f32; 4]) {
-    let k = floor_div(x, 2);
-    if x.rem_euclid(2) == 0 {
-        (k - 2, CUBIC_EVEN)
-    } else {
-        (k - 1, CUBIC_ODD)
-    }
-}
-
-/// Catmull-Rom up-sampling of a `lo × lo` patch to `2lo × 2lo`, clamped at the patch edges.
-fn upsample_patch(lo_patch: &[f32], lo: usize, out: &mut [f32]) {
-    let hi = 2 * lo;
-    let clamp = |k: i64| k.clamp(0, lo as i64 - 1) as usize;
-    let mut rows = vec![0.0f32; lo * hi];
-    // Horizontal pass: lo rows × hi columns.
-    for r in 0..lo {
-        for c in 0..hi {
-            let (k, w) = cubic_taps(c as i64);
-            let mut v = 0.0f32;
-            for (t, wt) in w.iter().enumerate() {
-                v += wt * lo_patch[r * lo + clamp(k + t as i64)];
-            }
-            rows[r * hi + c] = v;
-        }
-    }
-    for r in 0..hi {
-        let (k, w) = cubic_taps(r as i64);
-        for c in 0..hi {
-            let mut v = 0.0f32;
-            for (t, wt) in w.iter().enumerate() {
-                v += wt * rows[clamp(k + t as i64) * hi + c];
-            }
-            out[r * hi + c] = v;
-        }
-    }
 }
 
 impl Amplifier {
@@ -147,7 +125,46 @@ impl Amplifier {
         if patch < 8 || patch % 4 != 0 {
             return Err(SynthError::PatchSize(patch));
         }
-        let step = patch / 2;
+        let mut amp = Amplifier {
+            inv_rms: Vec::new(),
+            with_layers: true,
+            layer_mask: vec![true; dict.layers.len()],
+            smooth: Vec::new(),
+            detail: Vec::new(),
+            detail_rms: Vec::new(),
+            matcher: Matcher::new(dict.clone(), weights)?,
+            dict,
+            patch,
+            step: patch / 2,
+            alpha: Vec::new(),
+            walpha: Vec::new(),
+            inv_norm: Vec::new(),
+            levers: Levers::default(),
+            kernel: CATMULL_ROM,
+        };
+        amp.configure();
+        Ok(amp)
+    }
+
+    /// This amplifier with other [`Levers`] (the tables that depend on them are rebuilt).
+    pub fn with_levers(mut self, levers: Levers) -> Self {
+        self.levers = levers;
+        self.configure();
+        self
+    }
+
+    /// The levers this amplifier runs with.
+    pub fn levers(&self) -> Levers {
+        self.levers
+    }
+
+    /// Builds the blending tables and the atoms' smooth/detail split for the current levers.
+    fn configure(&mut self) {
+        let patch = self.patch;
+        let step = self.step;
+        let dict = self.dict.clone();
+        let power = self.levers.blend_power.max(1) as i32;
+        self.kernel = UpKernel::new(self.levers.kernel);
         let radius = step as f32;
         let mut alpha = vec![0.0f32; patch * patch];
         for r in 0..patch {
@@ -161,6 +178,7 @@ impl Amplifier {
                 }
             }
         }
+        let walpha: Vec<f32> = alpha.iter().map(|a| a.powi(power)).collect();
         // A pixel at offset (oy, ox) of a lattice cell is covered by the four primitives that see
         // it at patch offsets {oy, oy+step} × {ox, ox+step}; sum them in lattice order.
         let mut inv_norm = vec![0.0f32; step * step];
@@ -170,9 +188,9 @@ impl Amplifier {
                 let (mut sum, mut sum2) = (0.0f32, 0.0f32);
                 for py in [oy + step, oy] {
                     for px in [ox + step, ox] {
-                        let a = alpha[py * patch + px];
-                        sum += a;
-                        sum2 += a * a;
+                        sum += alpha[py * patch + px];
+                        let w = walpha[py * patch + px];
+                        sum2 += w * w;
                     }
                 }
                 inv_norm[oy * step + ox] = 1.0 / sum;
@@ -184,7 +202,11 @@ impl Amplifier {
         let mut detail = vec![0.0f32; dict.n_atoms * p2];
         for i in 0..dict.n_atoms {
             let sm = &mut smooth[i * p2..(i + 1) * p2];
-            upsample_patch(dict.lo_atom(i), patch / 2, sm);
+            if self.levers.consistent_split {
+                consistent_upsample_patch(dict.lo_atom(i), patch / 2, sm);
+            } else {
+                upsample_patch(&CATMULL_ROM, dict.lo_atom(i), patch / 2, sm);
+            }
             for ((d, &h), &m) in detail[i * p2..(i + 1) * p2]
                 .iter_mut()
                 .zip(dict.hi_atom(i))
@@ -193,19 +215,19 @@ impl Amplifier {
                 *d = h - m;
             }
         }
-        Ok(Amplifier {
-            inv_rms,
-            with_layers: true,
-            layer_mask: vec![true; dict.layers.len()],
-            smooth,
-            detail,
-            matcher: Matcher::new(dict.clone(), weights)?,
-            dict,
-            patch,
-            step,
-            alpha,
-            inv_norm,
-        })
+        self.detail_rms = detail
+            .chunks(p2.max(1))
+            .map(|d| {
+                let ss: f64 = d.iter().map(|&v| f64::from(v) * f64::from(v)).sum();
+                (ss / p2.max(1) as f64).sqrt() as f32
+            })
+            .collect();
+        self.alpha = alpha;
+        self.walpha = walpha;
+        self.inv_norm = inv_norm;
+        self.inv_rms = inv_rms;
+        self.smooth = smooth;
+        self.detail = detail;
     }
 
     /// This amplifier, reconstructing elevation only (extra dictionary layers are skipped, which
@@ -246,9 +268,17 @@ impl Amplifier {
                 needed: needed.to_string(),
             });
         }
-        let bw = Self::blend_window(out);
+        let bw = self.blend_window(out);
         let zero = Array2::<f32>::zeros((bw.rows, bw.cols));
-        Ok(correct(&zero, bw, parent, parent_window, out))
+        Ok(correct(
+            &CATMULL_ROM,
+            &zero,
+            bw,
+            parent,
+            parent_window,
+            out,
+            LAYER_PASSES,
+        ))
     }
 
     /// The dictionary this level uses.
@@ -261,10 +291,17 @@ impl Amplifier {
         (floor_div(x0, 2), floor_div(x1 + 1, 2))
     }
 
+    /// Parent pixels of margin the corrections consume on each side: the elevation's passes times
+    /// its kernel's reach, or the layers' Catmull-Rom passes, whichever is wider.
+    fn correction_margin(&self) -> i64 {
+        (i64::from(self.levers.passes) * self.kernel.reach())
+            .max(LAYER_PASSES * CATMULL_ROM.reach())
+    }
+
     /// The hi-res window on which the raw blend is needed for output window `out`: the children
     /// of the parent pixels under `out`, widened by one parent pixel per smooth correction pass.
-    fn blend_window(out: Window) -> Window {
-        let n = SMOOTH_PASSES * PASS_MARGIN;
+    fn blend_window(&self, out: Window) -> Window {
+        let n = self.correction_margin();
         let (k0, k1) = Self::parent_span(out.col0, out.col1());
         let (l0, l1) = Self::parent_span(out.row0, out.row1());
         Window::from_bounds(2 * (k0 - n), 2 * (l0 - n), 2 * (k1 + n), 2 * (l1 + n))
@@ -282,15 +319,27 @@ impl Amplifier {
         }
     }
 
+    /// The window whose raw elevation the breaching of `out` reads: `out` widened by
+    /// [`breach_margin`] (the reach of a channel, and of the search that finds it).
+    fn conditioned_window(&self, out: Window) -> Window {
+        let m = if self.levers.breach > 0 {
+            breach_margin(self.levers.breach as usize) as i64
+        } else {
+            0
+        };
+        Window::from_bounds(out.col0 - m, out.row0 - m, out.col1() + m, out.row1() + m)
+    }
+
     /// The parent window that [`Amplifier::amplify`] needs to compute output window `out`.
     pub fn parent_window_for(&self, out: Window) -> Window {
-        let bw = Self::blend_window(out);
+        let out = self.conditioned_window(out);
+        let bw = self.blend_window(out);
         let lr = self.lattice_range(bw);
         let s = self.step as i64;
         let q = (self.patch / 4) as i64;
         let (k0, k1) = Self::parent_span(out.col0, out.col1());
         let (l0, l1) = Self::parent_span(out.row0, out.row1());
-        let n = SMOOTH_PASSES * PASS_MARGIN;
+        let n = self.correction_margin();
         let c0 = (lr.i0 * s / 2 - q).min(k0 - n);
         let c1 = ((lr.i1 - 1) * s / 2 + q).max(k1 + n);
         let r0 = (lr.j0 * s / 2 - q).min(l0 - n);
@@ -322,6 +371,7 @@ impl Amplifier {
             })
             .collect();
         let pw = parent.window;
+        let roughness = self.levers.roughness;
         (0..nj * ni)
             .into_par_iter()
             .map_init(
@@ -330,9 +380,10 @@ impl Amplifier {
                         MatchScratch::default(),
                         vec![0.0f32; lo * lo],
                         Query::default(),
+                        OctaveScratch::default(),
                     )
                 },
-                |(scratch, raw, query), n| {
+                |(scratch, raw, query, octave), n| {
                     let i = lr.i0 + (n % ni) as i64;
                     let j = lr.j0 + (n / ni) as i64;
                     let pc0 = (i * s / 2 - q - pw.col0) as usize;
@@ -364,11 +415,27 @@ impl Amplifier {
                         }
                     }
                     let (atom, dot) = self.matcher.best_match(query, scratch);
+                    let detail_coef = if roughness > 0.0 {
+                        let target = roughness * finest_octave_rms(raw, lo, octave);
+                        let own = self.detail_rms[atom];
+                        if own > 0.0 {
+                            (target / own).min(MAX_DETAIL_PER_RELIEF * norm)
+                        } else {
+                            0.0
+                        }
+                    } else {
+                        norm
+                    };
                     Primitive {
                         atom,
                         coef: dot * norm,
                         mean,
-                        detail_coef: norm,
+                        detail_coef,
+                        inv_slope: if query.mean_slope > 0.0 {
+                            1.0 / query.mean_slope
+                        } else {
+                            0.0
+                        },
                     }
                 },
             )
@@ -386,6 +453,7 @@ impl Amplifier {
         lr: LatticeRange,
         prims: &[Primitive],
         what: Blended,
+        slope: Option<&Array2<f32>>,
     ) -> Array2<f32> {
         let s = self.step as i64;
         let p = self.patch;
@@ -393,6 +461,7 @@ impl Amplifier {
         let nl = self.dict.layers.len();
         let ni = (lr.i1 - lr.i0) as usize;
         let cols = bw.cols.max(1);
+        let parent_smooth = self.levers.parent_smooth;
         let mut flat = vec![0.0f32; bw.rows * bw.cols];
         flat.par_chunks_mut(cols).enumerate().for_each_init(
             || vec![0.0f32; cols],
@@ -407,6 +476,7 @@ impl Amplifier {
                     }
                     let oy = (y - (j * s - s)) as usize;
                     let alpha_row = &self.alpha[oy * p..(oy + 1) * p];
+                    let walpha_row = &self.walpha[oy * p..(oy + 1) * p];
                     for i in lr.i0..lr.i1 {
                         let prim = &prims[(j - lr.j0) as usize * ni + (i - lr.i0) as usize];
                         let x_start = (i * s - s).max(bw.col0);
@@ -425,9 +495,26 @@ impl Amplifier {
                                 let sm = &self.smooth[base..base + len];
                                 let dt = &self.detail[base..base + len];
                                 let det = &mut acc_detail[c0..c0 + len];
-                                for k in 0..len {
-                                    out[k] += a[k] * (prim.coef * sm[k] + prim.mean);
-                                    det[k] += a[k] * (prim.detail_coef * dt[k]);
+                                let wa = &walpha_row[ox0..ox0 + len];
+                                if !parent_smooth {
+                                    for k in 0..len {
+                                        out[k] += a[k] * (prim.coef * sm[k] + prim.mean);
+                                    }
+                                }
+                                match slope {
+                                    Some(sl) => {
+                                        let srow = sl.row(r);
+                                        let srow = srow.slice(s![c0..c0 + len]);
+                                        for k in 0..len {
+                                            let m = (srow[k] * prim.inv_slope).min(SLOPE_MOD_MAX);
+                                            det[k] += wa[k] * (prim.detail_coef * dt[k]) * m;
+                                        }
+                                    }
+                                    None => {
+                                        for k in 0..len {
+                                            det[k] += wa[k] * (prim.detail_coef * dt[k]);
+                                        }
+                                    }
                                 }
                             }
                             Blended::Layer(l) => {
@@ -482,12 +569,30 @@ impl Amplifier {
         if parent.elevation.iter().any(|v| !v.is_finite()) {
             return Err(SynthError::NonFinite);
         }
-        let bw = Self::blend_window(out);
+        let ext = self.conditioned_window(out);
+        let bw = self.blend_window(ext);
         let lr = self.lattice_range(bw);
         let prims = self.match_primitives(&parent, lr, parent_cell_m);
         let dict = &*self.dict;
-        let blended = self.blend(bw, lr, &prims, Blended::Elevation);
-        let elevation = correct(&blended, bw, &parent.elevation, parent.window, out);
+        let slope = self
+            .levers
+            .slope_mod
+            .then(|| child_slope(&parent.elevation, parent.window, bw, parent_cell_m));
+        let blended = self.blend(bw, lr, &prims, Blended::Elevation, slope.as_ref());
+        let raw = correct(
+            &self.kernel,
+            &blended,
+            bw,
+            &parent.elevation,
+            parent.window,
+            ext,
+            i64::from(self.levers.passes),
+        );
+        let elevation = if self.levers.breach > 0 {
+            breach_pits(&raw, (ext.row0, ext.col0), self.levers.breach as usize)
+        } else {
+            raw
+        };
         let nl = if self.with_layers {
             dict.layers.len()
         } else {
@@ -498,9 +603,9 @@ impl Amplifier {
             if !self.layer_mask.get(l).copied().unwrap_or(false) {
                 continue;
             }
-            let raw = self.blend(bw, lr, &prims, Blended::Layer(l));
+            let raw = self.blend(bw, lr, &prims, Blended::Layer(l), None);
             let field = match parent.layer(&info.name) {
-                Some(pl) => correct(&raw, bw, pl, parent.window, out),
+                Some(pl) => correct(&CATMULL_ROM, &raw, bw, pl, parent.window, out, LAYER_PASSES),
                 None => crop(&raw, bw, out),
             };
             layers.push((info.name.clone(), field));
@@ -511,6 +616,34 @@ impl Amplifier {
             layers,
         })
     }
+}
+
+/// The parent's slope magnitude (m/m, central differences on cells of `cell_m`), interpolated
+/// bilinearly at the children of window `w` (the parent must cover `w`'s parents and 2 more).
+fn child_slope(p: &Array2<f32>, pw: Window, w: Window, cell_m: f32) -> Array2<f32> {
+    let inv = 1.0 / (2.0 * cell_m.max(1e-6));
+    let at = |r: i64, c: i64| p[[(r - pw.row0) as usize, (c - pw.col0) as usize]];
+    let slope_at = |r: i64, c: i64| {
+        let gx = (at(r, c + 1) - at(r, c - 1)) * inv;
+        let gy = (at(r + 1, c) - at(r - 1, c)) * inv;
+        (gx * gx + gy * gy).sqrt()
+    };
+    Array2::from_shape_fn((w.rows, w.cols), |(rr, cc)| {
+        let (y, x) = (w.row0 + rr as i64, w.col0 + cc as i64);
+        // Child x lies at parent coordinate (x + 0.5)/2 − 0.5: between k = floor((x − 1)/2) and
+        // k + 1 with weight 0.25 or 0.75.
+        let (kx, fx) = (
+            floor_div(x - 1, 2),
+            if x.rem_euclid(2) == 0 { 0.75 } else { 0.25 },
+        );
+        let (ky, fy) = (
+            floor_div(y - 1, 2),
+            if y.rem_euclid(2) == 0 { 0.75 } else { 0.25 },
+        );
+        let top = slope_at(ky, kx) * (1.0 - fx) + slope_at(ky, kx + 1) * fx;
+        let bottom = slope_at(ky + 1, kx) * (1.0 - fx) + slope_at(ky + 1, kx + 1) * fx;
+        top * (1.0 - fy) + bottom * fy
+    })
 }
 
 /// The part of `a` (held over `aw`) lying in `w`.
@@ -541,17 +674,6 @@ impl Plane {
     }
 }
 
-/// Per output column of window `w`: the cubic taps into a residual plane starting at column
-/// `r_col0` (index of the left tap and the two weights).
-fn column_taps(w: Window, r_col0: i64) -> Vec<(usize, [f32; 4])> {
-    (0..w.cols)
-        .map(|c| {
-            let (k, wt) = cubic_taps(w.col0 + c as i64);
-            ((k - r_col0) as usize, wt)
-        })
-        .collect()
-}
-
 /// `F − Down(G)` over the parent pixels of window `rw` (whose children `g` covers), computed with
 /// the one 2×2 box average ([`box2`]).
 fn residual(f: &Plane, g: &Plane, rw: Window) -> Plane {
@@ -573,52 +695,99 @@ fn residual(f: &Plane, g: &Plane, rw: Window) -> Plane {
 }
 
 /// Residual correction of a raw blend `b` (held over the blend window `bw`) against the parent
-/// field `f` (held over `fw`), returning the corrected values over `out`: [`SMOOTH_PASSES`] passes
-/// of `G += cubic(F − Down(G))`, each on a window [`PASS_MARGIN`] parent pixels narrower. Every value is a function of global coordinates only, so the
-/// result is window-invariant; rows are processed in parallel.
-fn correct(b: &Array2<f32>, bw: Window, f: &Array2<f32>, fw: Window, out: Window) -> Array2<f32> {
+/// field `f` (held over `fw`), returning the corrected values over `out`: `passes` passes of
+/// `G += Up(F − Down(G))` with `kernel`, each on a window `kernel.reach()` parent pixels narrower.
+/// Every value is a function of global coordinates only, so the result is window-invariant; rows
+/// are processed in parallel.
+fn correct(
+    kernel: &UpKernel,
+    b: &Array2<f32>,
+    bw: Window,
+    f: &Array2<f32>,
+    fw: Window,
+    out: Window,
+    passes: i64,
+) -> Array2<f32> {
+    match kernel.taps_per_phase() {
+        4 => correct_n::<4>(kernel, b, bw, f, fw, out, passes),
+        8 => correct_n::<8>(kernel, b, bw, f, fw, out, passes),
+        _ => correct_n::<12>(kernel, b, bw, f, fw, out, passes),
+    }
+}
+
+/// The weights of child `x` as an array of `N` (the kernel's taps per phase).
+#[inline]
+fn taps_n<const N: usize>(kernel: &UpKernel, x: i64) -> (i64, [f32; N]) {
+    let (k, w) = kernel.taps(x);
+    let mut a = [0.0f32; N];
+    for (d, s) in a.iter_mut().zip(w) {
+        *d = *s;
+    }
+    (k, a)
+}
+
+/// [`correct`] for a kernel of `N` taps per phase (the sums run in tap order, like a plain loop).
+fn correct_n<const N: usize>(
+    kernel: &UpKernel,
+    b: &Array2<f32>,
+    bw: Window,
+    f: &Array2<f32>,
+    fw: Window,
+    out: Window,
+    passes: i64,
+) -> Array2<f32> {
     let (k0, k1) = Amplifier::parent_span(out.col0, out.col1());
     let (l0, l1) = Amplifier::parent_span(out.row0, out.row1());
     let f = Plane::from_array(f, fw);
     let mut g = Plane::from_array(b, bw);
-    for pass in 1..=SMOOTH_PASSES {
+    for pass in 1..=passes {
         let rw = Window::from_bounds(g.w.col0 / 2, g.w.row0 / 2, g.w.col1() / 2, g.w.row1() / 2);
         let r = residual(&f, &g, rw);
-        let n = (SMOOTH_PASSES - pass) * PASS_MARGIN;
+        let n = (passes - pass) * kernel.reach();
         let nw = Window::from_bounds(2 * (k0 - n), 2 * (l0 - n), 2 * (k1 + n), 2 * (l1 + n));
         // Horizontal pass of the up-sampling over the residual's rows, then vertical.
-        let taps = column_taps(nw, rw.col0);
+        let taps: Vec<(usize, [f32; N])> = (0..nw.cols)
+            .map(|c| {
+                let (k, w) = taps_n::<N>(kernel, nw.col0 + c as i64);
+                ((k - rw.col0) as usize, w)
+            })
+            .collect();
         let mut horiz = vec![0.0f32; rw.rows * nw.cols];
         horiz
             .par_chunks_mut(nw.cols.max(1))
             .enumerate()
             .for_each(|(rr, o)| {
                 let rrow = r.row(rw.row0 + rr as i64);
-                for (cc, v) in o.iter_mut().enumerate() {
-                    let (rx, w) = taps[cc];
-                    *v = w[0] * rrow[rx]
-                        + w[1] * rrow[rx + 1]
-                        + w[2] * rrow[rx + 2]
-                        + w[3] * rrow[rx + 3];
+                for (v, (rx, w)) in o.iter_mut().zip(&taps) {
+                    let src = &rrow[*rx..*rx + N];
+                    let mut acc = 0.0f32;
+                    for t in 0..N {
+                        acc += w[t] * src[t];
+                    }
+                    *v = acc;
                 }
             });
         let mut data = vec![0.0f32; nw.len()];
         data.par_chunks_mut(nw.cols.max(1))
             .enumerate()
-            .for_each(|(rr, o)| {
-                let y = nw.row0 + rr as i64;
-                let (ky, w) = cubic_taps(y);
-                let hrow = |t: i64| {
-                    let i = (ky + t - rw.row0) as usize * nw.cols;
-                    &horiz[i..i + nw.cols]
-                };
-                let (h0, h1, h2, h3) = (hrow(0), hrow(1), hrow(2), hrow(3));
-                let grow = &g.row(y)[(nw.col0 - g.w.col0) as usize..];
-                for (cc, v) in o.iter_mut().enumerate() {
-                    let up = w[0] * h0[cc] + w[1] * h1[cc] + w[2] * h2[cc] + w[3] * h3[cc];
-                    *v = grow[cc] + up;
-                }
-            });
+            .for_each_init(
+                || vec![0.0f32; nw.cols],
+                |up, (rr, o)| {
+                    let y = nw.row0 + rr as i64;
+                    let (ky, w) = taps_n::<N>(kernel, y);
+                    up.iter_mut().for_each(|u| *u = 0.0);
+                    for (t, wt) in w.iter().enumerate() {
+                        let i = (ky + t as i64 - rw.row0) as usize * nw.cols;
+                        for (u, hv) in up.iter_mut().zip(&horiz[i..i + nw.cols]) {
+                            *u += wt * hv;
+                        }
+                    }
+                    let grow = &g.row(y)[(nw.col0 - g.w.col0) as usize..];
+                    for ((v, gv), u) in o.iter_mut().zip(grow).zip(up.iter()) {
+                        *v = gv + u;
+                    }
+                },
+            );
         g = Plane { data, w: nw };
     }
     // The result over `out`, cut from G (which covers the children of [k0, k1) × [l0, l1)).

@@ -1,7 +1,8 @@
-//! Amplification: one ×2 level on a global lattice of primitives ([`level`]), the windows and
-//! fields it works on ([`field`]), and chains of levels from a base ([`chain`]); compact terrains
-//! on the same lattice (sparse construction trees, [`compact`], and their file format,
-//! [`compact_format`]). Everything is a
+//! Amplification: one ×2 level on a global lattice of primitives ([`level`]) with its switches
+//! ([`levers`]) and up-sampling kernels ([`kernel`]), the windows and fields it works on
+//! ([`field`]), and chains of levels from a base ([`chain`]); compact terrains on the same
+//! lattice (sparse construction trees, [`compact`], and their file format, [`compact_format`]).
+//! Everything is a
 //! pure function of the parent values, the dictionary and the requested pixels: no caching, no
 //! HTTP, no dependence on thread count.
 
@@ -11,9 +12,13 @@ pub mod compact;
 pub mod compact_format;
 pub mod error;
 pub mod field;
+pub mod kernel;
 pub mod level;
+pub mod levers;
 
 pub use chain::{amplify_chain, chain_windows, BaseSource, ClampedRaster};
 pub use error::SynthError;
 pub use field::{Field, Window};
+pub use kernel::KernelKind;
 pub use level::Amplifier;
+pub use levers::Levers;

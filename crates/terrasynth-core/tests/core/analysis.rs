@@ -612,3 +612,181 @@ fn nan_cells_are_outlets() {
     let _ = analysis::aspect(&all_nan, &cs);
     let _ = analysis::band_energy(&all_nan, 0.0, 0.5);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Realism measures: pixel-axis anisotropy, drainage density
+// ---------------------------------------------------------------------------------------------
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, .. ProptestConfig::default() })]
+
+    /// The FFT-based anisotropy equals the naive DFT twin (plane by normal equations, wedges by
+    /// angle in degrees) on random grids of any size.
+    #[test]
+    fn axis_anisotropy_matches_naive(rows in 4usize..22, cols in 4usize..22, seed in any::<u64>()) {
+        let mut g = Lcg(seed);
+        let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
+            (g.next() * 50.0 + 3.0 * r as f64 - 2.0 * c as f64) as f32
+        });
+        let fast = analysis::axis_anisotropy(&z);
+        let slow = naive::axis_anisotropy(&z);
+        prop_assert!(
+            (fast.is_nan() && slow.is_nan()) || rel_close(fast, slow, 1e-9),
+            "{fast} vs {slow}"
+        );
+    }
+}
+
+/// White noise in [0, 100) from the test LCG.
+fn noise(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
+    let mut g = Lcg(seed);
+    Array2::from_shape_fn((rows, cols), |_| (g.next() * 100.0) as f32)
+}
+
+#[test]
+fn axis_anisotropy_sees_ribbing_and_ignores_planes() {
+    let white = noise(64, 64, 5);
+    let a_white = analysis::axis_anisotropy(&white);
+    assert!((0.6..1.6).contains(&a_white), "white noise {a_white}");
+    // A tilted plane adds nothing: it is detrended away.
+    let tilted = Array2::from_shape_fn((64, 64), |(r, c)| {
+        white[[r, c]] + 40.0 * r as f32 - 25.0 * c as f32
+    });
+    assert!((analysis::axis_anisotropy(&tilted) - a_white).abs() < 1e-6 * a_white);
+    // Ribs along the columns (frequency 0.4 cycles/pixel along x) dominate the axis wedge.
+    let ribbed = Array2::from_shape_fn((64, 64), |(r, c)| {
+        white[[r, c]] + 60.0 * (2.0 * std::f32::consts::PI * 0.4 * c as f32).cos()
+    });
+    assert!(analysis::axis_anisotropy(&ribbed) > 10.0 * a_white);
+    // The same ribs along a diagonal weigh on the other side of the ratio.
+    let diagonal = Array2::from_shape_fn((64, 64), |(r, c)| {
+        white[[r, c]] + 60.0 * (2.0 * std::f32::consts::PI * 0.3 * (r + c) as f32).cos()
+    });
+    assert!(analysis::axis_anisotropy(&diagonal) < 0.1 * a_white);
+    // Transposing a square grid swaps the two axes: same ratio.
+    let t = white.t().to_owned();
+    assert!((analysis::axis_anisotropy(&t) - a_white).abs() < 1e-9 * a_white);
+    assert!(analysis::axis_anisotropy(&Array2::zeros((3, 8))).is_nan());
+}
+
+#[test]
+fn drainage_density_of_an_eastward_plane() {
+    // Every row drains east along its own chain: cell c has (c + 1) cells upstream. With a
+    // threshold of 3 cells, columns 2..=8 carry a 100 m link each (column 9 is an outlet):
+    // 7 links × 100 m × 5 rows over 50 cells of 1e4 m² = 3.5 km / 0.5 km² = 7 km per km².
+    let z = plane(5, 10, 100.0, |x, _| -x);
+    let cs = CellSizes::uniform(5, 100.0);
+    let d = analysis::drainage_density(&z, &cs, 3e4);
+    assert!((d - 7.0).abs() < 1e-9, "{d}");
+    // A higher threshold (6 cells: columns 5..=8) shortens the network.
+    let d6 = analysis::drainage_density(&z, &cs, 6e4);
+    assert!((d6 - 4.0).abs() < 1e-9, "{d6}");
+    assert_eq!(
+        analysis::drainage_density(&Array2::zeros((0, 0)), &cs, 1.0),
+        0.0
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bounded pit breaching
+// ---------------------------------------------------------------------------------------------
+
+use terrasynth_core::analysis::breach::{breach_margin, breach_pits, breach_pits_naive};
+
+/// Rough random terrain: a tilt plus noise, rounded to 1/4 m so that ties (flats) occur.
+fn rough_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
+    let mut g = Lcg(seed);
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        ((0.3 * r as f64 - 0.2 * c as f64 + 6.0 * g.next()) * 4.0).round() as f32 / 4.0
+    })
+}
+
+/// Whether `(r, c)` is below all 8 neighbours in the order (value, global row, global column).
+fn is_pit_in(z: &Array2<f32>, origin: (i64, i64), r: usize, c: usize) -> bool {
+    let key = |r: usize, c: usize| (origin.0 + r as i64, origin.1 + c as i64);
+    D8_OFFSETS.iter().all(|&(dr, dc)| {
+        let (nr, nc) = ((r as isize + dr) as usize, (c as isize + dc) as usize);
+        let (a, b) = (z[[nr, nc]], z[[r, c]]);
+        a > b || (a == b && key(nr, nc) > key(r, c))
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, .. ProptestConfig::default() })]
+
+    /// The Dijkstra version equals the Bellman-Ford reference bit for bit.
+    #[test]
+    fn breach_matches_naive(rows in 9usize..26, cols in 9usize..26, radius in 1usize..4,
+                            seed in any::<u64>(), r0 in -50i64..50, c0 in -50i64..50) {
+        let z = rough_terrain(rows, cols, seed);
+        let fast = breach_pits(&z, (r0, c0), radius);
+        let slow = breach_pits_naive(&z, (r0, c0), radius);
+        prop_assert_eq!(fast.dim(), slow.dim());
+        prop_assert!(fast.iter().zip(slow.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+
+    /// A cell's result depends only on its neighbourhood: breaching a sub-window (with its global
+    /// origin) gives the same inner values as breaching the whole grid.
+    #[test]
+    fn breach_is_window_invariant(seed in any::<u64>(), radius in 1usize..5,
+                                  r0 in 0usize..20, c0 in 0usize..20, h in 12usize..40, w in 12usize..40) {
+        let z = rough_terrain(64, 64, seed);
+        let m = breach_margin(radius);
+        let whole = breach_pits(&z, (100, -7), radius);
+        let (h, w) = (h.min(64 - r0), w.min(64 - c0));
+        prop_assume!(h > 2 * m && w > 2 * m);
+        let sub = z.slice(ndarray::s![r0..r0 + h, c0..c0 + w]).to_owned();
+        let part = breach_pits(&sub, (100 + r0 as i64, -7 + c0 as i64), radius);
+        for ((r, c), v) in part.indexed_iter() {
+            let (wr, wc) = (r + r0, c + c0);
+            prop_assert_eq!(v.to_bits(), whole[[wr, wc]].to_bits(), "({}, {})", wr, wc);
+        }
+    }
+
+    /// Breaching only lowers cells, and every pit of the result (away from the window's edge)
+    /// was already a pit: channels descend strictly, so they create none.
+    #[test]
+    fn breach_lowers_and_creates_no_pit(seed in any::<u64>(), radius in 1usize..5) {
+        let z = rough_terrain(40, 40, seed);
+        let m = breach_margin(radius);
+        let b = breach_pits(&z, (0, 0), radius);
+        let inner = z.slice(ndarray::s![m..40 - m, m..40 - m]).to_owned();
+        prop_assert!(b.iter().zip(inner.iter()).all(|(x, y)| x <= y));
+        let (rows, cols) = b.dim();
+        for r in 1..rows - 1 {
+            for c in 1..cols - 1 {
+                if is_pit_in(&b, (m as i64, m as i64), r, c) {
+                    prop_assert!(is_pit_in(&inner, (m as i64, m as i64), r, c), "new pit at ({}, {})", r, c);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn breach_cuts_the_cheapest_rim_and_keeps_unreachable_pits() {
+    // A plane falling 10 m per cell eastwards with a pit of −15 m at (10, 10) (the plane is 0 m
+    // there): its east neighbour (−10 m) is a one-cell rim, the cell beyond (−20 m) is lower.
+    // The cheapest channel (carve 5 m) goes straight east; its one inner cell takes the straight
+    // grade from −15 to −20 over two steps: −17.5.
+    let mut z = plane(21, 21, 1.0, |x, _| 100.0 - 10.0 * x);
+    let base = z[[10, 10]];
+    z[[10, 10]] = base - 15.0;
+    let m = breach_margin(3);
+    let b = breach_pits(&z, (0, 0), 3);
+    assert_eq!(b[[10 - m, 11 - m]], base - 17.5);
+    // The pit and the goal keep their values, and nothing else moves.
+    assert_eq!(b[[10 - m, 10 - m]], base - 15.0);
+    assert_eq!(b[[10 - m, 12 - m]], z[[10, 12]]);
+    let moved = b
+        .indexed_iter()
+        .filter(|&((r, c), v)| *v != z[[r + m, c + m]])
+        .count();
+    assert_eq!(moved, 1);
+    // A pit deeper than every cell within the radius stays as it is.
+    let mut deep = plane(21, 21, 1.0, |x, _| 100.0 - 0.1 * x);
+    deep[[10, 10]] = 10.0;
+    let bd = breach_pits(&deep, (0, 0), 2);
+    assert_eq!(bd, deep.slice(ndarray::s![4..17, 4..17]).to_owned());
+    assert_eq!(breach_pits(&Array2::zeros((6, 6)), (0, 0), 2).len(), 0);
+}

@@ -4,7 +4,9 @@
 use ndarray::{s, Array2};
 use proptest::prelude::*;
 use terrasynth_core::dictionary::MatchWeights;
-use terrasynth_core::synth::{amplify_chain, Amplifier, ClampedRaster, Field, SynthError, Window};
+use terrasynth_core::synth::{
+    amplify_chain, Amplifier, ClampedRaster, Field, KernelKind, Levers, SynthError, Window,
+};
 
 use terrasynth_test_support::{small_dictionary, synthetic_terrain};
 
@@ -66,6 +68,158 @@ proptest! {
         let expect = whole.crop(part_w).unwrap();
         prop_assert!(part.elevation.iter().zip(expect.elevation.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
     }
+}
+
+// --- every lever keeps the invariants (issue #12's ablations run them all) ---
+
+/// The lever sets of the ablation: the baseline, each lever alone, and the default.
+fn lever_sets() -> Vec<Levers> {
+    let base = Levers::baseline();
+    vec![
+        base,
+        Levers {
+            consistent_split: true,
+            ..base
+        },
+        Levers {
+            parent_smooth: true,
+            ..base
+        },
+        Levers {
+            blend_power: 3,
+            ..base
+        },
+        Levers {
+            roughness: 0.6,
+            ..base
+        },
+        Levers {
+            kernel: KernelKind::Kaiser6,
+            passes: 2,
+            ..base
+        },
+        Levers {
+            kernel: KernelKind::Kaiser4,
+            ..base
+        },
+        Levers { breach: 3, ..base },
+        Levers {
+            slope_mod: true,
+            ..base
+        },
+        Levers::default(),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 20, .. ProptestConfig::default() })]
+
+    #[test]
+    fn every_lever_set_is_window_invariant(which in 0usize..10, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
+        let levers = lever_sets()[which];
+        let dict = small_dictionary(3);
+        let base = synthetic_terrain(72, 72, 5);
+        let src = ClampedRaster { elevation: &base, layers: vec![] };
+        let w8 = MatchWeights::default();
+        let amps = vec![
+            Amplifier::new(dict.clone(), &w8).unwrap().with_levers(levers),
+            Amplifier::new(dict.clone(), &w8).unwrap().with_levers(levers),
+        ];
+        let big = Window::new(-40, -40, 260, 260);
+        let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
+        let part_w = Window::new(c0, r0, w, h);
+        let part = amplify_chain(&amps, &src, part_w, 100.0).unwrap();
+        let expect = whole.crop(part_w).unwrap();
+        prop_assert!(part.elevation.iter().zip(expect.elevation.iter()).all(|(a, b)| a.to_bits() == b.to_bits()), "{:?}", levers);
+    }
+}
+
+#[test]
+fn every_lever_set_is_deterministic_across_threads_and_consistent() {
+    let dict = small_dictionary(5);
+    let base = synthetic_terrain(48, 48, 11);
+    let relief = base.iter().cloned().fold(f32::MIN, f32::max)
+        - base.iter().cloned().fold(f32::MAX, f32::min);
+    for levers in lever_sets() {
+        let run = |threads: usize| -> Field {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let src = ClampedRaster {
+                    elevation: &base,
+                    layers: vec![],
+                };
+                let w = MatchWeights::default();
+                let amps = vec![
+                    Amplifier::new(dict.clone(), &w)
+                        .unwrap()
+                        .with_levers(levers),
+                    Amplifier::new(dict.clone(), &w)
+                        .unwrap()
+                        .with_levers(levers),
+                ];
+                amplify_chain(&amps, &src, Window::new(0, 0, 192, 192), 100.0).unwrap()
+            })
+        };
+        let one = run(1);
+        let four = run(4);
+        assert!(
+            one.elevation
+                .iter()
+                .zip(four.elevation.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{levers:?}"
+        );
+        // Zoom consistency: the box averages reproduce the base (breach channels and fewer
+        // passes cost some of it, never more than 1 % of the relief here).
+        let err = rmse(&box2(&box2(&one.elevation)), &base);
+        assert!(err < 0.01 * f64::from(relief), "{levers:?}: rmse {err}");
+    }
+}
+
+#[test]
+fn breaching_drains_the_pits_detail_opens() {
+    // The same level with and without breaching: the breached one has far fewer closed
+    // depressions, and moves few cells.
+    let dict = small_dictionary(6);
+    let base = synthetic_terrain(64, 64, 21);
+    let src = ClampedRaster {
+        elevation: &base,
+        layers: vec![],
+    };
+    let w = MatchWeights::default();
+    let run = |breach: u32| {
+        let levers = Levers {
+            breach,
+            ..Levers::default()
+        };
+        let amps = vec![Amplifier::new(dict.clone(), &w)
+            .unwrap()
+            .with_levers(levers)];
+        amplify_chain(&amps, &src, Window::new(0, 0, 128, 128), 100.0).unwrap()
+    };
+    let open = run(0);
+    let drained = run(6);
+    let (f_open, f_drained) = (
+        terrasynth_core::analysis::flood_extent(&open.elevation),
+        terrasynth_core::analysis::flood_extent(&drained.elevation),
+    );
+    assert!(f_open > 1.0, "the unbreached level has pits: {f_open} %");
+    assert!(f_drained < 0.5 * f_open, "{f_drained} % vs {f_open} %");
+    let moved = open
+        .elevation
+        .iter()
+        .zip(drained.elevation.iter())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(moved * 10 < open.elevation.len(), "{moved} cells moved");
+    assert!(drained
+        .elevation
+        .iter()
+        .zip(open.elevation.iter())
+        .all(|(d, o)| d <= o));
 }
 
 // --- determinism across rayon thread counts ---

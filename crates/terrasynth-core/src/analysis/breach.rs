@@ -1,0 +1,419 @@
+//! Bounded, order-independent depression breaching: every pit gets a monotone channel to the
+//! cheapest lower cell within a fixed radius, found by a least-cost search on the *unmodified*
+//! surface, and all channels are applied together with a minimum. A cell's result therefore
+//! depends only on the surface within twice the radius of it, never on where a window starts or
+//! ends nor on the order pits are processed in: breaching commutes with cutting windows out of an
+//! infinite plane, which is what a window-invariant amplifier needs (no global priority queue, no
+//! block seams).
+//!
+//! Definitions (all deterministic):
+//! - cells are ordered by `(value, global row, global column)`; a *pit* is a cell below every
+//!   8-neighbour in that order (so a flat has few pits, at its first cells);
+//! - from pit `q` (value `z_q`), a Dijkstra search over the cells within Chebyshev distance
+//!   `radius` of `q`, with entry cost `max(0, z − z_q) + STEP_COST · step length` (the depth to
+//!   carve, plus a small length term; diagonal steps are √2 long), heap ordered by
+//!   `(cost, global index)`, ends at the first popped cell strictly lower than `z_q`; such goal
+//!   cells are not expanded. No goal within the radius: the pit is left as it is;
+//! - along the path `q = c_0, c_1, …, c_n` (every `c_i`, `0 < i < n`, is at least `z_q`, or it
+//!   would have been the goal) the channel is the straight grade
+//!   `t_i = z_q − (z_q − z(c_n))·i/n` for `0 < i < n`; the goal keeps its value. When `f32` has no
+//!   room for a strictly descending grade (a goal a few ulps below the pit), the pit is left;
+//! - the result is `min(z, every channel through the cell)`.
+//!
+//! Every lowered cell then has a strictly lower neighbour (the next cell of the channel that
+//! gives it its value, or the goal), and cells not lowered keep theirs, so no pit is created and
+//! every pit whose search succeeds drains.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use ndarray::{s, Array2};
+use rayon::prelude::*;
+
+use super::common::D8_OFFSETS;
+
+/// Cost of one (cardinal) step of a channel, metres: prefers short channels among equally deep
+/// ones.
+pub const STEP_COST: f64 = 0.01;
+
+/// Length of a diagonal step relative to a cardinal one in the search's length term.
+const DIAGONAL_STEP: f64 = std::f64::consts::SQRT_2;
+
+/// Whether `(za, ia)` comes before `(zb, ib)` in the cell order (value by IEEE comparison, so
+/// `−0 = +0` and NaN is below nothing, then global index).
+#[inline]
+fn below(za: f32, ia: (i64, i64), zb: f32, ib: (i64, i64)) -> bool {
+    za < zb || (za == zb && ia < ib)
+}
+
+/// Whether cell `(r, c)` of the row-major `z` (`cols` wide; not on its border) is a pit.
+#[inline]
+fn is_pit(z: &[f32], cols: usize, origin: (i64, i64), r: usize, c: usize) -> bool {
+    let i = r * cols + c;
+    let v = z[i];
+    let (up, down) = (
+        &z[i - cols - 1..i - cols + 2],
+        &z[i + cols - 1..i + cols + 2],
+    );
+    let (w, e) = (z[i - 1], z[i + 1]);
+    // Fast path: a strictly lower neighbour settles it without indices.
+    if up.iter().chain(down).any(|&n| n < v) || w < v || e < v {
+        return false;
+    }
+    if !(up.iter().chain(down).any(|&n| n == v) || w == v || e == v) {
+        return true;
+    }
+    let me = (origin.0 + r as i64, origin.1 + c as i64);
+    D8_OFFSETS.iter().all(|&(dr, dc)| {
+        let (nr, nc) = ((r as isize + dr) as usize, (c as isize + dc) as usize);
+        let n = (origin.0 + nr as i64, origin.1 + nc as i64);
+        !below(z[nr * cols + nc], n, v, me)
+    })
+}
+
+/// A heap entry of the search: cost and row-major index in the search box (min-heap by cost,
+/// then index; within one box the index order is the global order).
+#[derive(Clone, Copy, PartialEq)]
+struct Item {
+    cost: f64,
+    cell: u32,
+}
+
+impl Eq for Item {}
+
+impl Ord for Item {
+    fn cmp(&self, other: &Self) -> Ordering {
+        other
+            .cost
+            .total_cmp(&self.cost)
+            .then_with(|| other.cell.cmp(&self.cell))
+    }
+}
+
+impl PartialOrd for Item {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// The channel of one pit: cells of `z` with their channel values (the pit itself excluded).
+type Channel = Vec<((usize, usize), f32)>;
+
+/// Reusable buffers of the search over a `(2·radius + 1)²` box, framed by one sentinel cell on
+/// every side (so neighbours need no bounds test). Entries are valid for the current search only
+/// when their stamp equals its generation, so nothing is cleared between pits.
+struct Search {
+    radius: usize,
+    /// Side of the framed box, `2·radius + 3`.
+    side: usize,
+    dist: Vec<f64>,
+    pred: Vec<u32>,
+    /// Generation in which `dist`/`pred` were last written.
+    seen: Vec<u32>,
+    /// Generation in which the cell was popped (sentinels: `u32::MAX`).
+    done: Vec<u32>,
+    generation: u32,
+    /// Neighbour offsets in the framed box and their length costs.
+    steps: [(isize, f64); 8],
+    heap: BinaryHeap<Item>,
+}
+
+impl Search {
+    fn new(radius: usize) -> Self {
+        let side = 2 * radius + 3;
+        let mut done = vec![0u32; side * side];
+        for r in 0..side {
+            for c in 0..side {
+                if r == 0 || c == 0 || r == side - 1 || c == side - 1 {
+                    done[r * side + c] = u32::MAX;
+                }
+            }
+        }
+        let steps = D8_OFFSETS.map(|(dr, dc)| {
+            let step = if dr != 0 && dc != 0 {
+                DIAGONAL_STEP
+            } else {
+                1.0
+            };
+            (dr * side as isize + dc, STEP_COST * step)
+        });
+        Search {
+            radius,
+            side,
+            dist: vec![f64::INFINITY; side * side],
+            pred: vec![u32::MAX; side * side],
+            seen: vec![0u32; side * side],
+            done,
+            generation: 0,
+            steps,
+            heap: BinaryHeap::new(),
+        }
+    }
+
+    /// The channel from pit `(r, c)` of the row-major `z` (`cols` wide; the pit at least
+    /// `radius` cells from every edge), if a strictly lower cell lies within the radius.
+    fn channel(&mut self, z: &[f32], cols: usize, r: usize, c: usize) -> Option<Channel> {
+        let (side, radius) = (self.side, self.radius);
+        if self.generation >= u32::MAX - 1 {
+            // Stamps would collide with the sentinels: start afresh.
+            *self = Search::new(radius);
+        }
+        self.generation += 1;
+        let gen = self.generation;
+        self.heap.clear();
+        // Framed-box cell (br, bc) is cell (r − radius − 1 + br, c − radius − 1 + bc) of z (the
+        // frame may lie one cell outside z; it is never read).
+        let base = (r * cols + c).wrapping_sub((radius + 1) * cols + radius + 1);
+        let at = |cell: usize| z[base.wrapping_add((cell / side) * cols + cell % side)];
+        let zq = z[r * cols + c];
+        let start = (radius + 1) * side + radius + 1;
+        self.dist[start] = 0.0;
+        self.seen[start] = gen;
+        self.heap.push(Item {
+            cost: 0.0,
+            cell: start as u32,
+        });
+        let mut goal = None;
+        while let Some(Item { cost, cell }) = self.heap.pop() {
+            let cell = cell as usize;
+            if self.done[cell] == gen {
+                continue;
+            }
+            self.done[cell] = gen;
+            if at(cell) < zq {
+                goal = Some(cell);
+                break;
+            }
+            for &(off, step_cost) in &self.steps {
+                let n = cell.wrapping_add_signed(off);
+                let stamp = self.done[n];
+                if stamp == gen || stamp == u32::MAX {
+                    continue;
+                }
+                let nd = cost + ((f64::from(at(n)) - f64::from(zq)).max(0.0) + step_cost);
+                if self.seen[n] != gen || nd < self.dist[n] {
+                    self.seen[n] = gen;
+                    self.dist[n] = nd;
+                    self.pred[n] = cell as u32;
+                    self.heap.push(Item {
+                        cost: nd,
+                        cell: n as u32,
+                    });
+                }
+            }
+        }
+        let goal = goal?;
+        let (r0, c0) = (r - radius, c - radius);
+        let mut path = Vec::new();
+        let mut cur = goal;
+        while cur != start {
+            // Never a frame cell: those are never pushed.
+            path.push((r0 + cur / side - 1, c0 + cur % side - 1));
+            cur = self.pred[cur] as usize;
+        }
+        path.reverse();
+        profile(z, cols, zq, &path)
+    }
+}
+
+/// The straight, strictly descending channel values of the cells of `path` before its end (the
+/// path starts next to a pit of value `zq` and ends at a strictly lower cell, which keeps its
+/// value), or `None` when `f32` cannot hold a strictly descending grade between them.
+fn profile(z: &[f32], cols: usize, zq: f32, path: &[(usize, usize)]) -> Option<Channel> {
+    let (&end, inner) = path.split_last()?;
+    let zn = z[end.0 * cols + end.1];
+    let n = path.len() as f64;
+    let drop = f64::from(zq) - f64::from(zn);
+    let mut prev = zq;
+    let mut out = Vec::with_capacity(inner.len());
+    for (i, &p) in inner.iter().enumerate() {
+        let t = (f64::from(zq) - drop * (i + 1) as f64 / n) as f32;
+        if !(t < prev && t > zn) {
+            return None;
+        }
+        prev = t;
+        out.push((p, t));
+    }
+    Some(out)
+}
+
+/// The frame [`breach_pits`] consumes on each side: twice the channel reach (a pit up to
+/// `radius` outside the window can carve into it, and its search reads `radius` further).
+pub fn breach_margin(radius: usize) -> usize {
+    2 * radius.max(1)
+}
+
+/// Breaches the pits of `z`, whose cell `(0, 0)` lies at global `origin = (row, col)`, with
+/// channels of Chebyshev reach `radius` (at least 1), and returns the breached values of the
+/// inner window (`z` without a frame of [`breach_margin`] cells; empty when `z` is too small).
+/// The inner values are the same whatever frame surrounds them.
+pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2<f32> {
+    let radius = radius.max(1);
+    let (rows, cols) = z.dim();
+    let m = breach_margin(radius);
+    if rows <= 2 * m || cols <= 2 * m {
+        return Array2::zeros((rows.saturating_sub(2 * m), cols.saturating_sub(2 * m)));
+    }
+    let flat = z.as_standard_layout();
+    let Some(v) = flat.as_slice() else {
+        return z.slice(s![m..rows - m, m..cols - m]).to_owned();
+    };
+    // Pits whose channels can reach the inner window lie within `radius` of it.
+    let pits: Vec<(usize, usize)> = (radius..rows - radius)
+        .into_par_iter()
+        .flat_map_iter(|r| {
+            (radius..cols - radius)
+                .filter(move |&c| is_pit(v, cols, origin, r, c))
+                .map(move |c| (r, c))
+        })
+        .collect();
+    let channels: Vec<Channel> = pits
+        .par_iter()
+        .map_init(
+            || Search::new(radius),
+            |s, &(r, c)| s.channel(v, cols, r, c).unwrap_or_default(),
+        )
+        .collect();
+    let (ir, ic) = (rows - 2 * m, cols - 2 * m);
+    let mut out = z.slice(s![m..m + ir, m..m + ic]).to_owned();
+    for &((r, c), t) in channels.iter().flatten() {
+        if r >= m && c >= m && r < m + ir && c < m + ic {
+            let o = &mut out[[r - m, c - m]];
+            if t < *o {
+                *o = t;
+            }
+        }
+    }
+    out
+}
+
+/// Reference implementation of [`breach_pits`] for tests: pits found by comparing `(value,
+/// index)` with every neighbour, least costs by relaxation to a fixed point (Bellman-Ford) over
+/// each pit's box, the goal as the lowest `(cost, global index)` among strictly lower cells, the
+/// path by walking back through the neighbour of lowest `(cost, global index)` among those
+/// expanded before the cell whose cost plus the cell's entry cost gives the cell's cost.
+pub fn breach_pits_naive(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2<f32> {
+    let radius = radius.max(1);
+    let (rows, cols) = z.dim();
+    let m = 2 * radius;
+    if rows <= 2 * m || cols <= 2 * m {
+        return Array2::zeros((rows.saturating_sub(2 * m), cols.saturating_sub(2 * m)));
+    }
+    let key = |a: (usize, usize)| (origin.0 + a.0 as i64, origin.1 + a.1 as i64);
+    let lower = |a: (usize, usize), b: (usize, usize)| {
+        let (za, zb) = (z[a], z[b]);
+        za < zb || (za == zb && key(a) < key(b))
+    };
+    let neighbours = |a: (usize, usize)| {
+        let mut v = Vec::new();
+        for dr in -1isize..=1 {
+            for dc in -1isize..=1 {
+                if (dr, dc) != (0, 0) {
+                    let step = if dr != 0 && dc != 0 {
+                        DIAGONAL_STEP
+                    } else {
+                        1.0
+                    };
+                    v.push((
+                        ((a.0 as isize + dr) as usize, (a.1 as isize + dc) as usize),
+                        step,
+                    ));
+                }
+            }
+        }
+        v
+    };
+    let mut out = z.clone();
+    for r in radius..rows - radius {
+        for c in radius..cols - radius {
+            let q = (r, c);
+            if neighbours(q).iter().any(|&(n, _)| lower(n, q)) {
+                continue;
+            }
+            let zq = z[q];
+            let inside = |a: (usize, usize)| {
+                // Neighbours of the frame wrap to huge indices: saturate, then the upper bound
+                // excludes them.
+                a.0.saturating_add(radius) >= r
+                    && a.0 <= r + radius
+                    && a.1.saturating_add(radius) >= c
+                    && a.1 <= c + radius
+            };
+            let is_goal = |a: (usize, usize)| z[a] < zq;
+            let entry = |a: (usize, usize), step: f64| {
+                (f64::from(z[a]) - f64::from(zq)).max(0.0) + STEP_COST * step
+            };
+            let mut dist = std::collections::BTreeMap::new();
+            dist.insert(q, 0.0f64);
+            loop {
+                let mut changed = false;
+                let snapshot: Vec<((usize, usize), f64)> =
+                    dist.iter().map(|(k, v)| (*k, *v)).collect();
+                for (a, da) in snapshot {
+                    if is_goal(a) {
+                        continue;
+                    }
+                    for (b, step) in neighbours(a) {
+                        if !inside(b) {
+                            continue;
+                        }
+                        let nd = da + entry(b, step);
+                        if nd < dist.get(&b).copied().unwrap_or(f64::INFINITY) {
+                            dist.insert(b, nd);
+                            changed = true;
+                        }
+                    }
+                }
+                if !changed {
+                    break;
+                }
+            }
+            let rank = |a: &(usize, usize), d: f64| (d, key(*a));
+            let goal = dist
+                .iter()
+                .filter(|(a, _)| is_goal(**a))
+                .min_by(|(a, da), (b, db)| {
+                    rank(a, **da)
+                        .partial_cmp(&rank(b, **db))
+                        .unwrap_or(Ordering::Equal)
+                })
+                .map(|(a, _)| *a);
+            let Some(goal) = goal else { continue };
+            let mut path = vec![goal];
+            let mut cur = goal;
+            while cur != q {
+                let dc = dist[&cur];
+                // The cell's predecessor: among the neighbours expanded before it (lower rank,
+                // not goals) whose cost leads exactly to its cost, the first expanded.
+                let best = neighbours(cur)
+                    .into_iter()
+                    .filter(|&(p, step)| {
+                        inside(p)
+                            && !is_goal(p)
+                            && dist.get(&p).is_some_and(|&dp| {
+                                dp + entry(cur, step) == dc && rank(&p, dp) < rank(&cur, dc)
+                            })
+                    })
+                    .min_by(|(a, _), (b, _)| {
+                        rank(a, dist[a])
+                            .partial_cmp(&rank(b, dist[b]))
+                            .unwrap_or(Ordering::Equal)
+                    });
+                let Some((p, _)) = best else { break };
+                cur = p;
+                if cur != q {
+                    path.push(cur);
+                }
+            }
+            path.reverse();
+            let flat = z.as_standard_layout();
+            let v = flat.as_slice().unwrap_or(&[]);
+            for (p, t) in profile(v, cols, zq, &path).unwrap_or_default() {
+                if t < out[p] {
+                    out[p] = t;
+                }
+            }
+        }
+    }
+    out.slice(s![m..rows - m, m..cols - m]).to_owned()
+}

@@ -1,0 +1,145 @@
+//! The switches of one amplification level (issue #12's levers), so that each can be measured
+//! alone and in combination on the held-out suite (`scripts/realism.sh`, README "Realism").
+//! [`Levers::default`] is the amplifier the server and the command line run;
+//! [`Levers::baseline`] is the amplifier before issue #12.
+
+use super::kernel::KernelKind;
+
+/// The switches of one amplification level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Levers {
+    /// Split each atom into a smooth part that is the *consistent* up-sampling of its low atom
+    /// (its 2×2 box averages reproduce the low atom) and a detail part whose 2×2 box averages are
+    /// zero, instead of a plain Catmull-Rom smooth part.
+    pub consistent_split: bool,
+    /// Take the smooth part from the parent alone (the residual correction of a detail-only blend
+    /// reconstructs it) instead of from the matched atoms' scaled low shapes.
+    pub parent_smooth: bool,
+    /// Exponent `p` of the detail blending weights `α^p` (1: the plain radial falloff); above 1
+    /// one atom dominates near its centre and fewer overlapping atoms are averaged into texture.
+    pub blend_power: u32,
+    /// When above 0, the detail's amplitude follows the parent's own finest octave instead of its
+    /// relief: a primitive's detail RMS is `roughness` times the RMS of `P − CR(box(P))` over its
+    /// low patch `P` (self-similarity: each octave carries a fixed fraction of the one above),
+    /// whatever the matched atom's own detail-to-relief ratio, which belongs to the exemplar's
+    /// scale and not to the level's. 0: the detail is scaled by the patch's relief `P_s`.
+    pub roughness: f32,
+    /// Up-sampling kernel of the elevation's residual correction.
+    pub kernel: KernelKind,
+    /// Number of residual-correction passes of the elevation.
+    pub passes: u32,
+    /// When above 0, the reach (cells) of the channels that
+    /// [`breach_pits`](crate::analysis::breach::breach_pits) gives every pit of the level's
+    /// output; 0: no breaching.
+    pub breach: u32,
+    /// Multiply each atom's detail by the parent's local slope over its patch's mean slope
+    /// (interpolated to the pixel, at most 3): flat valley floors get little detail, steep slopes
+    /// more.
+    pub slope_mod: bool,
+}
+
+impl Default for Levers {
+    /// The served amplifier: detail amplitude from the parent's finest octave (0.58), Kaiser-6
+    /// correction in two passes, pits breached within 6 cells.
+    fn default() -> Self {
+        Levers {
+            consistent_split: false,
+            parent_smooth: false,
+            blend_power: 1,
+            roughness: 0.58,
+            kernel: KernelKind::Kaiser6,
+            passes: 2,
+            breach: 6,
+            slope_mod: false,
+        }
+    }
+}
+
+impl Levers {
+    /// No lever pulled: the amplifier before issue #12 (Catmull-Rom split and correction in four
+    /// passes, atom smooth parts, detail scaled by the patch's relief, `α` weights, no
+    /// breaching).
+    pub fn baseline() -> Self {
+        Levers {
+            consistent_split: false,
+            parent_smooth: false,
+            blend_power: 1,
+            roughness: 0.0,
+            kernel: KernelKind::CatmullRom,
+            passes: 4,
+            breach: 0,
+            slope_mod: false,
+        }
+    }
+
+    /// Parses a comma-separated list of changes applied in order to [`Levers::default`]:
+    /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
+    /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
+    /// `passes=N`, `breach=N`.
+    pub fn parse(s: &str) -> Result<Levers, String> {
+        let mut l = Levers::default();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (key, value) = match part.split_once('=') {
+                Some((k, v)) => (k.trim(), Some(v.trim())),
+                None => (part, None),
+            };
+            let (key, on) = match key.strip_prefix("no-") {
+                Some(k) => (k, false),
+                None => (key, true),
+            };
+            let num = |lo: f64, hi: f64| -> Result<f64, String> {
+                let v: f64 = value
+                    .ok_or_else(|| format!("`{part}`: expected {key}=VALUE"))?
+                    .parse()
+                    .map_err(|e| format!("`{part}`: {e}"))?;
+                if (lo..=hi).contains(&v) {
+                    Ok(v)
+                } else {
+                    Err(format!("`{part}`: {key} must lie in {lo}..={hi}"))
+                }
+            };
+            match key {
+                "base" | "baseline" => l = Levers::baseline(),
+                "default" => l = Levers::default(),
+                "split" => l.consistent_split = on,
+                "parent" => l.parent_smooth = on,
+                "slopemod" => l.slope_mod = on,
+                "power" => l.blend_power = num(1.0, 8.0)? as u32,
+                "rough" => l.roughness = num(0.0, 4.0)? as f32,
+                "passes" => l.passes = num(0.0, 12.0)? as u32,
+                "breach" => l.breach = num(0.0, 32.0)? as u32,
+                "kernel" => {
+                    l.kernel = match value {
+                        Some("cr") => KernelKind::CatmullRom,
+                        Some("k4") => KernelKind::Kaiser4,
+                        Some("k6") => KernelKind::Kaiser6,
+                        _ => return Err(format!("`{part}`: expected kernel=cr, k4 or k6")),
+                    }
+                }
+                _ => return Err(format!("`{part}`: unknown lever")),
+            }
+        }
+        Ok(l)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_applies_changes_in_order() {
+        assert_eq!(Levers::parse("").unwrap(), Levers::default());
+        assert_eq!(Levers::parse("base").unwrap(), Levers::baseline());
+        let l = Levers::parse("base, rough=0.5, kernel=k6, breach=4, split, no-split, power=3")
+            .unwrap();
+        assert_eq!(l.roughness, 0.5);
+        assert_eq!(l.kernel, KernelKind::Kaiser6);
+        assert_eq!((l.breach, l.blend_power, l.consistent_split), (4, 3, false));
+        assert_eq!(l.passes, 4);
+        assert!(Levers::parse("rough").is_err());
+        assert!(Levers::parse("breach=1000").is_err());
+        assert!(Levers::parse("kernel=lanczos").is_err());
+        assert!(Levers::parse("warp").is_err());
+    }
+}

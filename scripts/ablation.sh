@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# The lever ablation of issue #12 on the held-out suite (scripts/realism.sh): each lever of
+# `amplify --levers` alone on the pre-#12 amplifier (`base`), all of them (`default`, what the
+# server runs), and `default` with each one taken back. Writes target/realism/ablation/<name>/
+# (one realism run each, sharing one held-out dictionary) and target/realism/ablation/table.md
+# (means over the six crops; band energy also as its worst crop).
+#
+# Usage: scripts/ablation.sh   (BIN=path: terrasynth binary, default target/release/terrasynth)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=target/realism/ablation
+BIN=${BIN:-target/release/terrasynth}
+[[ -x "$BIN" ]] || cargo build --release --quiet --bin terrasynth
+mkdir -p "$OUT"
+RUNS=(
+    "before base"
+    "rough base,rough=0.58"
+    "kaiser6x2 base,kernel=k6,passes=2"
+    "breach base,breach=6"
+    "split base,split"
+    "parent base,parent"
+    "power3 base,power=3"
+    "slopemod base,slopemod"
+    "default default"
+    "default-rough default,rough=0"
+    "default-kaiser default,kernel=cr,passes=4"
+    "default-breach default,breach=0"
+    "default+power3 default,power=3"
+    "default+slopemod default,slopemod"
+)
+for run in "${RUNS[@]}"; do
+    read -r name levers <<<"$run"
+    dict=()
+    [[ -f "$OUT/heldout.dict" ]] && dict=(DICT="$OUT/heldout.dict")
+    env "${dict[@]}" OUT="$OUT/$name" BIN="$BIN" bash scripts/realism.sh --levers "$levers" >/dev/null
+    [[ -f "$OUT/heldout.dict" ]] || cp "$OUT/$name/heldout.dict" "$OUT/heldout.dict"
+    echo "$name ($levers) done" >&2
+done
+python3 - "$OUT" "${RUNS[@]}" <<'PY' | tee "$OUT/table.md"
+import json, sys
+out, runs = sys.argv[1], [r.split(" ", 1) for r in sys.argv[2:]]
+crops = ["talas", "kyrgyz", "alai", "pamir", "karatau", "steppe"]
+cols = [("band (worst)", None), ("band", "band_energy_ratio"), ("flood err", "flood_extent_error_pct"),
+        ("slope W1 °", "slope_wasserstein_deg"), ("log-area W1", "log_area_wasserstein"),
+        ("curv. W1 1e-4/m", "curvature_wasserstein_per_m"), ("aniso/truth", "anisotropy_vs_truth"),
+        ("RMSE/bicubic", None), ("consist. %", "consistency_pct")]
+print("| run | `--levers` | " + " | ".join(c for c, _ in cols) + " |")
+print("| --- | --- | " + " | ".join("---:" for _ in cols) + " |")
+for name, levers in runs:
+    rep = [json.load(open(f"{out}/{name}/{c}.json")) for c in crops]
+    amp = [r["amplified"] for r in rep]
+    mean = lambda k: sum(a[k] for a in amp) / len(amp)
+    cells = []
+    for label, key in cols:
+        if label == "band (worst)":
+            worst = max((a["band_energy_ratio"] for a in amp), key=lambda b: abs(b - 1) if b >= 1 else abs(1 / b - 1))
+            cells.append(f"{worst:.2f}")
+        elif label == "RMSE/bicubic":
+            cells.append("{:.2f}".format(sum(r["amplified"]["rmse_m"] / r["bicubic"]["rmse_m"] for r in rep) / len(rep)))
+        elif key == "curvature_wasserstein_per_m":
+            cells.append(f"{mean(key) * 1e4:.3f}")
+        elif key == "log_area_wasserstein":
+            cells.append(f"{mean(key):.3f}")
+        else:
+            cells.append(f"{mean(key):.2f}")
+    print(f"| {name} | `{levers}` | " + " | ".join(cells) + " |")
+PY

@@ -1,0 +1,109 @@
+//! Measures issue #12's served-tile acceptance (points 3 and 5) on the default world, on the
+//! tiles exactly as the server renders them (elevation decoded from terrarium PNGs as a client
+//! sees it, upstream area as the drainage EXR carries it), around the Kyrgyz Ala-Too point whose
+//! tiles the tile-hash list holds (zoom-10 tile 724/378 and its descendants):
+//!
+//! - flood extent (% of the mosaic that priority-flood filling raises) of 8×8 mosaics at zooms
+//!   10, 12 and 14 (acceptance 5: ≤ 5 %);
+//! - drainage continuity: over the same mosaics, the runs of channel pixels (upstream area
+//!   ≥ 10⁶ m², what the drainage PNG draws) that lie on a tile's outermost row or column next to
+//!   another tile of the mosaic, and the share of them with a channel pixel among the three
+//!   pixels facing them across the border (acceptance 5: ≥ 90 %);
+//! - pixel-axis anisotropy ([`axis_anisotropy`]) of 2×2 mosaics (512²) at zooms 8 (native, for
+//!   reference), 10, 12, 13 and 14 (acceptance 3: ≤ 1.5).
+//!
+//! Usage: `cargo run --release --example served_realism -- [STORE_DIR]` (default
+//! `target/picture-store`; builds the default dictionary there on first use). Prints a markdown
+//! table.
+
+// A measurement tool: a failed unwrap aborts the run with its message.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::error::Error;
+
+use ndarray::Array2;
+use terrasynth_core::analysis::flood_extent;
+use terrasynth_core::analysis::realism::axis_anisotropy;
+use terrasynth_test_support::coherence::{decoded_elevation, served_drainage};
+
+/// Upstream area from which the drainage PNG draws a channel (its default `png_min_m2`).
+const CHANNEL_M2: f32 = 1e6;
+
+/// The zoom-10 tile whose corner every mosaic is centred on.
+const CENTRE_Z10: (u32, u32) = (724, 378);
+
+/// The first tile of an `n × n` mosaic at zoom `z` centred on [`CENTRE_Z10`]'s corner.
+fn origin(z: u8, n: u32) -> (u32, u32) {
+    let (x, y) = if z >= 10 {
+        (CENTRE_Z10.0 << (z - 10), CENTRE_Z10.1 << (z - 10))
+    } else {
+        (CENTRE_Z10.0 >> (10 - z), CENTRE_Z10.1 >> (10 - z))
+    };
+    (x - n / 2, y - n / 2)
+}
+
+/// Runs of channel pixels on tile borders and how many continue across (see the module docs).
+fn continuity(area: &Array2<f32>) -> (usize, usize) {
+    let size = area.nrows();
+    let ch = |r: usize, c: usize| area[[r, c]] >= CHANNEL_M2;
+    let (mut reached, mut continued) = (0, 0);
+    // Every internal border line: between column/row b−1 and b for b = 256, 512, ...
+    for b in (256..size).step_by(256) {
+        for (inside, across) in [(b - 1, b), (b, b - 1)] {
+            for vertical in [true, false] {
+                let at = |t: usize, line: usize| if vertical { ch(t, line) } else { ch(line, t) };
+                let mut t = 0;
+                while t < size {
+                    if !at(t, inside) {
+                        t += 1;
+                        continue;
+                    }
+                    let start = t;
+                    while t < size && at(t, inside) {
+                        t += 1;
+                    }
+                    reached += 1;
+                    let lo = start.saturating_sub(1);
+                    let hi = (t + 1).min(size);
+                    if (lo..hi).any(|u| at(u, across)) {
+                        continued += 1;
+                    }
+                }
+            }
+        }
+    }
+    (reached, continued)
+}
+
+fn main() -> Result<(), Box<dyn Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let store = args.first().map_or("target/picture-store", String::as_str);
+    let mut config = terrasynth::config::load(None, Vec::new())?;
+    config.server.store_dir = store.into();
+    let store = terrasynth_store::Store::open(&config.server.store_dir)?;
+    let worlds = terrasynth::server::load_worlds(&config, &store)?;
+    let world = worlds.get("tienshan").ok_or("no default world")?;
+
+    println!("| zoom | mosaic (tiles from) | flood extent, % | channel runs on borders | continue across | anisotropy (2×2) |");
+    println!("| ---: | --- | ---: | ---: | ---: | ---: |");
+    for z in [8u8, 10, 12, 13, 14] {
+        let (ax, ay) = origin(z, 2);
+        let small = decoded_elevation(world, z, ax, ay, 2);
+        let aniso = axis_anisotropy(&small);
+        if matches!(z, 10 | 12 | 14) {
+            let n = 8;
+            let (x0, y0) = origin(z, n);
+            let elev = decoded_elevation(world, z, x0, y0, n);
+            let area = served_drainage(world, z, x0, y0, n);
+            let flood = flood_extent(&elev);
+            let (reached, continued) = continuity(&area);
+            println!(
+                "| {z} | 8×8 ({x0}, {y0}) | {flood:.2} | {reached} | {:.1} % | {aniso:.2} |",
+                100.0 * continued as f64 / reached.max(1) as f64
+            );
+        } else {
+            println!("| {z} | 2×2 ({ax}, {ay}) | — | — | — | {aniso:.2} |");
+        }
+    }
+    Ok(())
+}

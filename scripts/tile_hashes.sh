@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Rewrites tests/data/default_world_tiles.sha256 (the tile-hash list `tests/it/tile_hashes.rs`
+# checks) from a release server of the default world: the same 65 paths, their new SHA-256.
+# Run it only in a commit that means to change the amplifier or a layer, and say so there.
+#
+# Usage: scripts/tile_hashes.sh [PORT]   (default 18473; a fresh store under target/)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PORT=${1:-18473}
+LIST=tests/data/default_world_tiles.sha256
+STORE=$(mktemp -d target/tile-hash-store.XXXXXX)
+cargo build --release --quiet --bin terrasynth
+TERRASYNTH_STORE_DIR=$STORE target/release/terrasynth serve --listen "127.0.0.1:$PORT" \
+    >"$STORE/server.log" 2>&1 &
+pid=$!
+trap 'kill $pid 2>/dev/null || true; rm -rf "$STORE"' EXIT
+for _ in $(seq 600); do
+    curl -sf "http://127.0.0.1:$PORT/worlds" >/dev/null && break
+    sleep 1
+done
+tmp=$(mktemp)
+while read -r _ path; do
+    [[ -z "$path" ]] && continue
+    hash=$(curl -sf "http://127.0.0.1:$PORT$path" | sha256sum | cut -d' ' -f1)
+    echo "$hash $path" >>"$tmp"
+done <"$LIST"
+mv "$tmp" "$LIST"
+echo "rewrote $LIST ($(wc -l <"$LIST") tiles)"
