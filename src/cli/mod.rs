@@ -1,5 +1,5 @@
 //! The command line's commands as library functions, so that they can be tested without a
-//! process: `dictionary build`, `amplify`, `eval` and `crop`. `src/main.rs` only parses arguments
+//! process: `dictionary build`, `amplify`, `eval`, `crop`, `features` and `sketch`. `src/main.rs` only parses arguments
 //! and calls these.
 
 #![warn(clippy::arithmetic_side_effects)]
@@ -9,5 +9,7 @@ pub mod build;
 pub mod crop;
 pub mod error;
 pub mod eval;
+pub mod features;
+pub mod sketch;
 
 pub use error::CliError;

@@ -12,6 +12,8 @@
 //! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
 //! - [`spectrum`]: FFT and radial band energy.
+//! - [`ppa`]: ridges and valleys (Profile-recognition and Polygon-breaking Algorithm), and their
+//!   agreement with D8 drainage; [`ppa_naive`]: its references.
 //! - [`naive`]: slow reference implementations for tests.
 
 mod common;
@@ -21,6 +23,8 @@ pub mod flow;
 pub mod hillshade;
 pub mod metrics;
 pub mod naive;
+pub mod ppa;
+pub mod ppa_naive;
 pub mod spectrum;
 
 use thiserror::Error;
