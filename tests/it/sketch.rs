@@ -1,7 +1,8 @@
 //! Feature extraction and sketch synthesis (issue #18) from the outside: `terrasynth features`
 //! and `terrasynth sketch` run as real processes on a crop of the committed Tien Shan grid (the
 //! GeoJSON they write, the grid they make, the same bytes from two runs, bad sketches refused
-//! with a message and no output).
+//! with a message and no output); and a sketched base served as a world gives window-invariant
+//! tiles.
 
 use std::path::Path;
 use std::process::Command;
@@ -229,5 +230,80 @@ fn sketch_makes_the_asked_grid_deterministically_and_refuses_bad_sketches() {
         assert_eq!(o.status.code(), Some(1), "case {i}: {err}");
         assert!(err.contains(needle), "case {i}: {err}");
         assert!(!out.exists(), "case {i}");
+    }
+}
+
+/// A sketched base serves like any world: an amplified tile computed alone equals, bit for bit,
+/// the same window of its level computed over a 2 × 2 block of tiles in one call, at the native
+/// zoom and two levels deeper.
+#[test]
+fn a_sketched_base_serves_window_invariant_tiles() {
+    use ndarray::s;
+    use terrasynth_core::dictionary::MatchWeights;
+    use terrasynth_core::raster::{embedded, Grid};
+    use terrasynth_core::synth::sketch::geojson::parse_sketch;
+    use terrasynth_core::synth::sketch::{synthesize, OutputSpec, SizeLimits, SketchOptions};
+    use terrasynth_core::synth::{Amplifier, Field, Window};
+    use terrasynth_test_support::{mini_world, small_dictionary_with_vegetation, tile_of};
+
+    // The mini world's grid: 256 × 256 cells of 15″ from 70°E 43°N.
+    let cell = 1.0 / 240.0;
+    let grid = OutputSpec {
+        west: 70.0,
+        south: 43.0 - 256.0 * cell,
+        east: 70.0 + 256.0 * cell,
+        north: 43.0,
+        cell_deg: cell,
+    }
+    .grid(&SizeLimits::default())
+    .unwrap();
+    let sketch = json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"kind": "ridge"}, "geometry": {"type": "LineString",
+            "coordinates": [[70.1, 42.5], [70.5, 42.55], [70.95, 42.45]]}},
+        {"type": "Feature", "properties": {"kind": "valley"}, "geometry": {"type": "LineString",
+            "coordinates": [[70.1, 42.2], [70.5, 42.25], [70.95, 42.15]]}},
+    ]});
+    let sketch = parse_sketch(&sketch, grid).unwrap();
+    let g = embedded::tienshan().unwrap();
+    let ex = Grid::new(
+        g.data.slice(s![600..984, 1600..1984]).to_owned(),
+        g.georef.window(1600, 600),
+    );
+    let made = synthesize(&sketch, &[ex], &SketchOptions::default(), &mut |_, _| true).unwrap();
+    let dict = small_dictionary_with_vegetation(2);
+    let world = mini_world(made.grid.data, dict.clone(), "d", 10, 64 << 20);
+    for z in [8u8, 10] {
+        let (x0, y0) = tile_of(70.3, 42.75, z);
+        let block = Window::new(i64::from(x0) * 256, i64::from(y0) * 256, 512, 512);
+        let whole = if z == world.z_base() {
+            world.elevation_window(z, block).unwrap()
+        } else {
+            let amp = Amplifier::new(dict.clone(), &MatchWeights::default())
+                .unwrap()
+                .without_layers();
+            let need = amp.parent_window_for(block);
+            let parent = Field::elevation_only(need, world.elevation_window(z - 1, need).unwrap());
+            amp.amplify(&parent, block, world.level_cell_m(z - 1) as f32)
+                .unwrap()
+                .elevation
+        };
+        let alone = world.elevation_tile(z, x0 + 1, y0 + 1).unwrap();
+        let window = whole.slice(s![256..512, 256..512]);
+        let same = alone
+            .iter()
+            .zip(window.iter())
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(
+            same,
+            "zoom {z}: the tile alone differs from its window of the block"
+        );
+        // Sketched terrain, not only the fill around the world (a zoom-8 tile is wider than it).
+        let (lo, hi) = alone
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        assert!(
+            hi > 300.0 && hi - lo > 50.0,
+            "zoom {z}: {lo}..{hi} is not sketched terrain"
+        );
     }
 }

@@ -368,7 +368,10 @@ mod tests {
 
     #[test]
     fn finds_an_exact_copy() {
-        let e = Array2::from_shape_fn((20, 24), |(r, c)| ((r * 7 + c * 13) % 17) as f32 * 10.0);
+        // Not periodic (a periodic pattern has exact copies elsewhere): a hash of the cell.
+        let e = Array2::from_shape_fn((20, 24), |(r, c)| {
+            (crate::dictionary::rng::hash2(7, r as i64, c as i64) % 1000) as f32
+        });
         let t = Array2::from_shape_fn((5, 6), |(r, c)| f64::from(e[[9 + r, 4 + c]]) + 3.0);
         let m = Array2::from_shape_fn((5, 6), |(r, c)| if (r + c) % 3 == 0 { 0.0 } else { 1.0 });
         let idx = SsdIndex::new(&e);
