@@ -28,6 +28,8 @@ const token = process.env.TERRASYNTH_ADMIN_TOKEN || '';
 const bin = process.env.TERRASYNTH_BIN || 'target/release/terrasynth';
 const MIN_VARIANCE = 25;
 const TIMEOUT_MS = 600_000;
+// The store outlives a run (scripts/browser_test.sh keeps it): a fresh world name each time.
+const WORLD = `browser-sketch-${Date.now()}`;
 
 fs.mkdirSync(out, { recursive: true });
 const failures = [];
@@ -150,7 +152,7 @@ try {
   if (drawn.features.length !== 3) fail(`drew ${drawn.features.length} lines, not 3`);
   await page.screenshot({ path: path.join(out, 'sketch-drawn.png') });
 
-  await page.fill('#sketch-name', 'browser-sketch');
+  await page.fill('#sketch-name', WORLD);
   await page.click('#sketch-submit');
   await page.waitForFunction(() => !document.getElementById('sketch-open').hidden
     || /failed|cancelled|refused/.test(document.getElementById('sketch-status').textContent), null, { timeout: TIMEOUT_MS, polling: 500 });
@@ -164,12 +166,12 @@ try {
   await page.waitForFunction(() => window.terrasynth && window.terrasynth.ready, null, { timeout: TIMEOUT_MS });
   await page.evaluate(() => window.terrasynth.ready);
   const name = await page.evaluate(() => window.terrasynth.world.name);
-  if (name !== 'browser-sketch') fail(`the link opened world ${name}`);
+  if (name !== WORLD) fail(`the link opened world ${name}, not ${WORLD}`);
   await waitIdle('the new world');
   const v = await canvasVariance();
   log(`new world: canvas grey-level variance ${v.toFixed(1)}`);
   if (!(v > MIN_VARIANCE)) fail(`the new world's canvas looks blank (variance ${v.toFixed(1)})`);
-  const tiles = responses.filter((x) => x.url.includes('/tiles/browser-sketch/elevation/') && x.status === 200);
+  const tiles = responses.filter((x) => x.url.includes(`/tiles/${WORLD}/elevation/`) && x.status === 200);
   log(`new world: ${tiles.length} elevation tiles answered 200`);
   if (tiles.length === 0) fail('no elevation tile of the new world was answered 200');
   await page.screenshot({ path: path.join(out, 'sketch-world.png') });
