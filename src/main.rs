@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use terrasynth::cli::{amplify, build, compact, crop, eval, CliError};
+use terrasynth::cli::{amplify, build, compact, crop, eval, features, sketch, CliError};
 use terrasynth::config::ConfigError;
 use terrasynth::server::StartupError;
 use terrasynth_core::dictionary::analytic::AnalyticKind;
@@ -39,6 +39,10 @@ enum Command {
     Compress(CompressCli),
     /// Decode a compact terrain (.sct) into a float32 GeoTIFF.
     Decompress(DecompressCli),
+    /// Extract ridges and valleys (PPA) of a DEM as GeoJSON.
+    Features(FeaturesCli),
+    /// Synthesize a base terrain from a sketch of ridge and valley lines and exemplar DEMs.
+    Sketch(SketchCli),
     /// Serve tiles over HTTP (the default command).
     Serve(ServeCli),
     /// Print the OpenAPI 3.1 description of the HTTP API (as committed in openapi/openapi.json).
@@ -197,6 +201,86 @@ struct CropCli {
     output: PathBuf,
 }
 
+#[derive(Args)]
+struct FeaturesCli {
+    /// Input DEM (GeoTIFF).
+    #[arg(long, value_name = "DEM.tif")]
+    input: PathBuf,
+    /// Output GeoJSON.
+    #[arg(long, value_name = "F.geojson")]
+    output: PathBuf,
+    /// Which features to write.
+    #[arg(long, value_enum, default_value = "all")]
+    kind: features::Kinds,
+    /// Also print how well they agree with D8 drainage (valleys on channels of 10 km² and
+    /// more, ridges between basins), as JSON.
+    #[arg(long)]
+    check: bool,
+}
+
+#[derive(Args)]
+struct SketchCli {
+    /// Exemplar DEM (GeoTIFF); repeat for several.
+    #[arg(long = "exemplar", value_name = "DEM.tif", required = true)]
+    exemplars: Vec<PathBuf>,
+    /// The sketch: GeoJSON LineStrings with `kind` (`ridge` or `valley`) and optional
+    /// `height_m`.
+    #[arg(long, value_name = "S.geojson")]
+    sketch: PathBuf,
+    /// Bounds of the world to make, degrees: W,S,E,N.
+    #[arg(long, value_name = "W,S,E,N", value_parser = sketch::parse_bounds, allow_hyphen_values = true)]
+    bounds: [f64; 4],
+    /// Cell size, degrees.
+    #[arg(long, value_name = "DEG")]
+    cell_size: f64,
+    /// Output GeoTIFF (float32, EPSG:4326).
+    #[arg(long, value_name = "BASE.tif")]
+    output: PathBuf,
+    /// Seed of the random choices.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+fn progress_bar() -> ProgressBar {
+    let bar = ProgressBar::new(1000);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {msg:>16} [{bar:40}] {percent:>3}% {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+fn run_sketch(a: SketchCli) -> Result<(), CliError> {
+    let bar = progress_bar();
+    let summary = sketch::run(
+        &sketch::SketchArgs {
+            exemplars: a.exemplars,
+            sketch: a.sketch,
+            bounds: a.bounds,
+            cell_size: a.cell_size,
+            output: a.output.clone(),
+            seed: a.seed,
+        },
+        &mut |stage, fraction| {
+            bar.set_message(stage.to_string());
+            bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+        },
+    );
+    bar.finish_and_clear();
+    let summary = summary?;
+    eprintln!(
+        "wrote {} ({}×{}) in {:.1} s",
+        a.output.display(),
+        summary.width,
+        summary.height,
+        summary.seconds
+    );
+    let json =
+        serde_json::to_string_pretty(&summary).map_err(|e| CliError::Usage(e.to_string()))?;
+    println!("{json}");
+    Ok(())
+}
+
 fn parse_layer(s: &str) -> Result<(String, PathBuf), String> {
     let (name, file) = s
         .split_once('=')
@@ -205,11 +289,7 @@ fn parse_layer(s: &str) -> Result<(String, PathBuf), String> {
 }
 
 fn run_build(args: BuildCli) -> Result<(), CliError> {
-    let bar = ProgressBar::new(1000);
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {msg:>16} [{bar:40}] {percent:>3}% {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = progress_bar();
     let build_args = build::BuildArgs {
         exemplars: args.exemplars,
         default_exemplar: args.default,
@@ -339,6 +419,27 @@ fn run(cli: Cli) -> Result<(), Failure> {
             println!("wrote {} ({}×{})", a.output.display(), g.cols(), g.rows());
             Ok(())
         }
+        Command::Features(a) => {
+            let s = features::run(&features::FeaturesArgs {
+                input: a.input,
+                output: a.output.clone(),
+                kinds: a.kind,
+                check: a.check,
+            })?;
+            eprintln!(
+                "wrote {}: {} ridge and {} valley lines",
+                a.output.display(),
+                s.ridge_paths,
+                s.valley_paths
+            );
+            if let Some(d) = s.drainage {
+                let json =
+                    serde_json::to_string_pretty(&d).map_err(|e| CliError::Usage(e.to_string()))?;
+                println!("{json}");
+            }
+            Ok(())
+        }
+        Command::Sketch(a) => Ok(run_sketch(a)?),
         Command::Crop(a) => {
             let g = crop::run(&crop::CropArgs {
                 input: a.input,

@@ -21,6 +21,9 @@ pub enum CliError {
     /// Amplification failed.
     #[error(transparent)]
     Synth(#[from] SynthError),
+    /// Sketch synthesis failed (or the sketch is invalid).
+    #[error(transparent)]
+    Sketch(#[from] terrasynth_core::synth::sketch::SketchError),
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {

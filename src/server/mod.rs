@@ -1,6 +1,6 @@
 //! The HTTP server: the router ([`app`], every route declared once with its OpenAPI description
 //! in [`api_routes`]), handlers that translate HTTP into calls of the tiles and store crates
-//! ([`tiles`], [`meta`], [`web`], the admin API in [`admin`]), errors as problem+json
+//! ([`tiles`], [`meta`], [`features`], [`web`], the admin API in [`admin`]), errors as problem+json
 //! ([`error`]), Prometheus metrics ([`metrics`]), the shared state ([`state`]), world loading
 //! ([`worlds`]) and start-up ([`startup`]). CPU work (tile synthesis and encoding) and blocking
 //! IO run on tokio's blocking pool, tiles behind a semaphore and a bounded queue; the async
@@ -8,6 +8,7 @@
 
 pub mod admin;
 pub mod error;
+pub mod features;
 pub mod meta;
 pub mod metrics;
 pub mod openapi;
@@ -86,6 +87,7 @@ pub fn api_routes(admin: bool) -> OpenApiRouter<AppState> {
         .routes(routes!(admin::dictionaries::get_dictionary))
         .routes(routes!(openapi::serve_spec))
         .routes(routes!(meta::world))
+        .routes(routes!(features::features))
         .routes(routes!(meta::tilejson))
         .routes(routes!(meta::style))
         .layer(CompressionLayer::new());
@@ -114,6 +116,7 @@ fn admin_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(jobs::list_jobs))
         .routes(routes!(jobs::get_job, jobs::cancel_job))
         .routes(routes!(worlds::post_world))
+        .routes(routes!(worlds::post_sketch_world))
         .routes(routes!(worlds::delete_world))
 }
 

@@ -1251,3 +1251,274 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
         assert!(v["detail"].as_str().unwrap().contains(field), "{v}");
     }
 }
+
+// --- sketch worlds and features (issue #18) ---
+
+/// GeoTIFF bytes of the Talas and Kyrgyz ranges: 256 × 256 cells of the committed Tien Shan grid
+/// (columns 1600–1855, rows 600–855).
+fn tienshan_crop_tiff() -> Vec<u8> {
+    let g = terrasynth_core::raster::embedded::tienshan().unwrap();
+    let crop = Grid::new(
+        g.data.slice(ndarray::s![600..856, 1600..1856]).to_owned(),
+        g.georef.window(1600, 600),
+    );
+    let mut out = std::io::Cursor::new(Vec::new());
+    terrasynth_core::raster::write_geotiff(&crop, &mut out).unwrap();
+    out.into_inner()
+}
+
+/// A sketch request for a 96 × 96 world at 15″ (bounds 70,42,70.4,42.4).
+fn sketch_request(
+    name: &str,
+    ex: &str,
+    dict: &str,
+    sketch: serde_json::Value,
+) -> serde_json::Value {
+    serde_json::json!({"name": name, "sketch": sketch, "bounds": [70.0, 42.0, 70.4, 42.4],
+        "cell_size": 1.0 / 240.0, "exemplars": [ex], "dictionaries": [dict], "seed": 5})
+}
+
+fn line(kind: &str, pts: &[[f64; 2]]) -> serde_json::Value {
+    serde_json::json!({"type": "Feature", "properties": {"kind": kind},
+        "geometry": {"type": "LineString", "coordinates": pts}})
+}
+
+fn good_sketch() -> serde_json::Value {
+    serde_json::json!({"type": "FeatureCollection", "features": [
+        line("ridge", &[[70.04, 42.2], [70.2, 42.22], [70.36, 42.19]]),
+        line("valley", &[[70.04, 42.07], [70.2, 42.09], [70.36, 42.06]]),
+        line("valley", &[[70.05, 42.34], [70.15, 42.3]]),
+    ]})
+}
+
+#[tokio::test]
+async fn a_sketch_becomes_a_served_world_and_bad_sketches_store_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let (st, v) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=talas",
+            Some("image/tiff"),
+            tienshan_crop_tiff(),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    let ex = v["id"].as_str().unwrap().to_string();
+    let (st, v) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/dictionaries",
+            serde_json::json!({"name": "talas", "exemplars": [ex], "atoms": 16, "patch": 16,
+                "stride": 16, "learning": "medoids:1"}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::ACCEPTED, "{v}");
+    let built = wait_job(&app, v["id"].as_str().unwrap()).await;
+    assert_eq!(built["state"], "succeeded", "{built}");
+    let dict = built["result"].as_str().unwrap().to_string();
+
+    // Refused with 422 (409 for a taken name) and nothing written.
+    let before = store_files(dir.path());
+    let many: Vec<[f64; 2]> = (0..10_001)
+        .map(|i| [70.05 + 0.3 * f64::from(i) / 10_001.0, 42.2])
+        .collect();
+    let crossing = line(
+        "ridge",
+        &[[70.1, 42.1], [70.3, 42.3], [70.3, 42.1], [70.1, 42.3]],
+    );
+    let mut over_limits = sketch_request("big", &ex, &dict, good_sketch());
+    over_limits["bounds"] = serde_json::json!([70.0, 42.0, 90.0, 62.0]);
+    let cases: Vec<(serde_json::Value, StatusCode, &str)> = vec![
+        (
+            sketch_request(
+                "a",
+                &ex,
+                &dict,
+                serde_json::json!({"type": "FeatureCollection", "features": []}),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "no ridge",
+        ),
+        (
+            sketch_request(
+                "a",
+                &ex,
+                &dict,
+                line("ridge", &[[70.1, 42.1], [71.0, 42.2]]),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "outside",
+        ),
+        (
+            sketch_request("a", &ex, &dict, line("ridge", &many)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "vertices",
+        ),
+        (
+            sketch_request("a", &ex, &dict, crossing),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "itself",
+        ),
+        (over_limits, StatusCode::UNPROCESSABLE_ENTITY, "exceed"),
+        (
+            sketch_request("a", &"0".repeat(64), &dict, good_sketch()),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "unknown exemplar",
+        ),
+        (
+            sketch_request("a", &ex, &"0".repeat(64), good_sketch()),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "unknown dictionary",
+        ),
+        (
+            sketch_request("no/slash", &ex, &dict, good_sketch()),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "world name",
+        ),
+        (
+            sketch_request("mini", &ex, &dict, good_sketch()),
+            StatusCode::CONFLICT,
+            "already exists",
+        ),
+    ];
+    for (body, want, needle) in cases {
+        let (st, h, b) = send(&app, json(Method::POST, "/admin/worlds/sketch", body)).await;
+        assert_eq!(st, want, "{needle}: {}", String::from_utf8_lossy(&b));
+        let detail = problem_detail(st, &h, &b);
+        assert!(detail.contains(needle), "{needle}: {detail}");
+    }
+    assert_eq!(store_files(dir.path()), before);
+    let (_, jobs) = send_json(&app, get("/admin/jobs")).await;
+    assert_eq!(jobs.as_array().unwrap().len(), 1, "only the build: {jobs}");
+
+    // A good sketch: 202 with the job, which ends with the world served.
+    let (st, h, b) = send(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds/sketch",
+            sketch_request("drawn", &ex, &dict, good_sketch()),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::ACCEPTED, "{}", String::from_utf8_lossy(&b));
+    let job: serde_json::Value = serde_json::from_slice(&b).unwrap();
+    assert_eq!(job["kind"], "sketch");
+    let id = job["id"].as_str().unwrap();
+    assert_eq!(h[header::LOCATION], format!("/admin/jobs/{id}").as_str());
+    let done = wait_job(&app, id).await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(done["result"], "drawn");
+    assert_eq!(done["progress"], 1.0);
+    assert_eq!(
+        done["request"]["bounds"],
+        serde_json::json!([70.0, 42.0, 70.4, 42.4])
+    );
+
+    let (st, w) = send_json(&app, get("/worlds/drawn")).await;
+    assert_eq!(st, StatusCode::OK, "{w}");
+    let b = w["bounds"].as_array().unwrap();
+    assert!(
+        (b[0].as_f64().unwrap() - 70.0).abs() < 1e-6
+            && (b[3].as_f64().unwrap() - 42.4).abs() < 1e-6,
+        "{w}"
+    );
+    // Its base is stored as an exemplar, and a tile at the native zoom holds the exemplar's
+    // kind of heights (the crop spans about 700–4800 m).
+    let (_, exemplars) = send_json(&app, get("/admin/exemplars")).await;
+    assert!(
+        exemplars
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["name"] == "sketch-drawn"),
+        "{exemplars}"
+    );
+    let z = w["native_zoom"].as_u64().unwrap() as u8;
+    let (x, y) = tile_of(70.2, 42.2, z);
+    let (st, _, png) = send(
+        &app,
+        get(&format!("/tiles/drawn/elevation/{z}/{x}/{y}.png")),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK);
+    let h = terrasynth_tiles::encode::decode_terrarium_png(&png).unwrap();
+    // The pixels inside the world (70.05–70.35°E, 42.05–42.35°N): fractional tile coordinates.
+    let n = f64::from(1u32 << z);
+    let px = |lon: f64| ((((lon + 180.0) / 360.0 * n - f64::from(x)) * 256.0) as usize).min(256);
+    let py = |lat: f64| {
+        let t = (1.0
+            - (lat.to_radians().tan() + 1.0 / lat.to_radians().cos()).ln() / std::f64::consts::PI)
+            / 2.0;
+        (((t * n - f64::from(y)) * 256.0) as usize).min(256)
+    };
+    let inside = h.slice(ndarray::s![py(42.35)..py(42.05), px(70.05)..px(70.35)]);
+    assert!(inside.len() > 50, "{}", inside.len());
+    let (lo, hi) = inside
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    assert!(lo > 300.0 && hi < 5500.0 && hi - lo > 100.0, "{lo}..{hi}");
+    // Its ridges and valleys are served too.
+    let (st, f) = send_json(&app, get("/worlds/drawn/features.geojson?kind=valley")).await;
+    assert_eq!(st, StatusCode::OK);
+    let fs = f["features"].as_array().unwrap();
+    assert!(!fs.is_empty() && fs.iter().all(|f| f["properties"]["kind"] == "valley"));
+    // The name is now taken.
+    let (st, _, _) = send(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds/sketch",
+            sketch_request("drawn", &ex, &dict, good_sketch()),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CONFLICT);
+}
+
+#[tokio::test]
+async fn features_of_a_world_as_geojson() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let (st, h, b) = send(&app, get("/worlds/mini/features.geojson")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "application/geo+json");
+    let all: serde_json::Value = serde_json::from_slice(&b).unwrap();
+    assert_eq!(all["type"], "FeatureCollection");
+    let features = all["features"].as_array().unwrap();
+    let count = |k: &str| {
+        features
+            .iter()
+            .filter(|f| f["properties"]["kind"] == k)
+            .count()
+    };
+    assert!(count("ridge") > 0 && count("valley") > 0);
+    assert_eq!(count("ridge") + count("valley"), features.len());
+    for f in features {
+        assert_eq!(f["geometry"]["type"], "LineString");
+        assert!(f["properties"]["mean_elevation_m"].is_number());
+    }
+    let (_, ridges) = send_json(&app, get("/worlds/mini/features.geojson?kind=ridge")).await;
+    assert_eq!(ridges["features"].as_array().unwrap().len(), count("ridge"));
+    // A strong ETag; If-None-Match → 304.
+    let tag = h[header::ETAG].to_str().unwrap().to_string();
+    let mut r = get("/worlds/mini/features.geojson");
+    r.headers_mut()
+        .insert(header::IF_NONE_MATCH, tag.parse().unwrap());
+    assert_eq!(send(&app, r).await.0, StatusCode::NOT_MODIFIED);
+    assert_eq!(
+        send(&app, get("/worlds/mini/features.geojson?kind=hill"))
+            .await
+            .0,
+        StatusCode::BAD_REQUEST
+    );
+    assert_eq!(
+        send(&app, get("/worlds/nope/features.geojson")).await.0,
+        StatusCode::NOT_FOUND
+    );
+}

@@ -6,6 +6,8 @@
 //! - [`web`]: the web map's routes;
 //! - [`openapi`]: the committed OpenAPI description equals the generated one;
 //! - [`cli`]: the command line (the real binary);
+//! - [`sketch`]: feature extraction and sketch synthesis: `features` and `sketch` on the real
+//!   binary;
 //! - [`e2e`]: `terrasynth serve` on a real socket on the default world;
 //! - [`admin_e2e`]: the admin flow, restarts and crashes on the real binary;
 //! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list.
@@ -21,6 +23,7 @@ mod cli;
 mod e2e;
 mod openapi;
 mod server;
+mod sketch;
 mod support;
 mod tile_hashes;
 mod web;

@@ -1,9 +1,10 @@
-//! Dictionary build jobs: a bounded queue (full → 503) feeding a fixed pool of low-priority worker
+//! Jobs — dictionary builds and sketch worlds: a bounded queue (full → 503) feeding a fixed pool of low-priority worker
 //! threads, each running builds on its own small rayon pool so that builds never compete with
 //! tile synthesis for the blocking pool or the global rayon pool. Job records live in memory and
 //! are written to the store on every state change; on start, jobs a previous process left queued
 //! or running are recorded as failed. A cancelled or failed build writes nothing to the store: the
-//! dictionary is stored (atomically) only once the build has succeeded.
+//! dictionary is stored (atomically) only once the build has succeeded; a sketch job hands its
+//! terrain to the catalogue service, which stores the world only once it is complete.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,10 +17,13 @@ use utoipa::ToSchema;
 use terrasynth_core::dictionary::build::{build_cancellable, BuildOptions, Exemplar};
 use terrasynth_core::dictionary::{DictionaryError, ExemplarOptions, LayerKind, Learning};
 use terrasynth_core::landscape::{exemplar_vegetation, LandscapeConfig, Species};
+use terrasynth_core::raster::Grid;
+use terrasynth_core::synth::sketch::geometry::Sketch;
 
 use crate::catalog::{lock, Catalog};
 use crate::error::{ServiceError, StoreError};
 use crate::exemplar;
+use crate::sketch::{run_sketch, SketchFailure, SketchRequest};
 use crate::store::{ObjectKind, Store};
 use crate::time::now_rfc3339;
 
@@ -85,22 +89,52 @@ pub struct DictionaryRequest {
     pub species: Option<Vec<Species>>,
 }
 
+/// What a job was asked to do.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum JobRequest {
+    /// Build a dictionary (`POST /admin/dictionaries`).
+    Dictionary(DictionaryRequest),
+    /// Make a world from a sketch (`POST /admin/worlds/sketch`).
+    Sketch(SketchRequest),
+}
+
+impl JobRequest {
+    /// The stored exemplars the job reads.
+    pub fn exemplars(&self) -> &[String] {
+        match self {
+            JobRequest::Dictionary(r) => &r.exemplars,
+            JobRequest::Sketch(r) => &r.exemplars,
+        }
+    }
+}
+
+/// The part of a sketch job that does not go into its record: the checked sketch, and what to
+/// do with the terrain (store it and the world, serve the world; returns the world's name).
+pub struct SketchJob {
+    /// The sketch, checked when the job was submitted.
+    pub sketch: Sketch,
+    /// Stores and serves the synthesized base.
+    pub finish: Box<dyn FnOnce(Grid) -> Result<String, ServiceError> + Send>,
+}
+
 /// A job record.
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
 pub struct Job {
     /// Job id.
     pub id: String,
-    /// What the job does (`dictionary`).
+    /// What the job does: `dictionary` or `sketch`.
     pub kind: String,
     /// State.
     pub state: JobState,
     /// Progress 0–1.
     pub progress: f64,
-    /// Current stage (`queued`, `reading`, `patches`, `learning`, `storing`, `done`).
+    /// Current stage (`queued`, `reading`, then for dictionaries `patches`, `learning`, for
+    /// sketches `features`, `filling`, `seams`; `storing`, `done`).
     pub stage: String,
     /// Why it failed.
     pub error: Option<String>,
-    /// The dictionary id, once succeeded.
+    /// Once succeeded: the dictionary id, or the sketch world's name.
     pub result: Option<String>,
     /// When it was submitted (RFC 3339, UTC).
     pub created: String,
@@ -109,7 +143,7 @@ pub struct Job {
     /// When it ended.
     pub finished: Option<String>,
     /// The request.
-    pub request: DictionaryRequest,
+    pub request: JobRequest,
 }
 
 struct Inner {
@@ -120,6 +154,8 @@ struct Inner {
     landscape: Arc<LandscapeConfig>,
     records: Mutex<BTreeMap<String, Job>>,
     cancels: Mutex<BTreeMap<String, Arc<AtomicBool>>>,
+    /// What sketch jobs do with their terrain, until they run.
+    sketches: Mutex<BTreeMap<String, SketchJob>>,
     tx: SyncSender<String>,
 }
 
@@ -138,6 +174,9 @@ enum BuildFailure {
     /// The store failed reading an exemplar or writing the dictionary.
     #[error("store: {0}")]
     Store(#[from] StoreError),
+    /// A sketch world could not be made.
+    #[error(transparent)]
+    Sketch(#[from] SketchFailure),
 }
 
 /// How many builds run and wait.
@@ -205,6 +244,7 @@ impl Jobs {
                 landscape,
                 records: Mutex::new(records),
                 cancels: Mutex::new(BTreeMap::new()),
+                sketches: Mutex::new(BTreeMap::new()),
                 tx,
             }),
         };
@@ -249,7 +289,11 @@ impl Jobs {
                 job.request.clone()
             };
             self.persist(&id);
-            let outcome = pool.install(|| self.run(&id, &request, &cancel));
+            let outcome = pool.install(|| match &request {
+                JobRequest::Dictionary(r) => self.run(&id, r, &cancel),
+                JobRequest::Sketch(r) => self.run_sketch(&id, r, &cancel),
+            });
+            lock(&self.inner.sketches).remove(&id);
             lock(&self.inner.cancels).remove(&id);
             {
                 let mut records = lock(&self.inner.records);
@@ -263,6 +307,7 @@ impl Jobs {
                             job.result = Some(dict_id);
                         }
                         Err(BuildFailure::Cancelled)
+                        | Err(BuildFailure::Sketch(SketchFailure::Cancelled))
                         | Err(BuildFailure::Build(DictionaryError::Cancelled)) => {
                             job.state = JobState::Cancelled;
                             job.stage = "cancelled".into();
@@ -272,7 +317,7 @@ impl Jobs {
                             job.error = Some(e.to_string());
                         }
                     }
-                    tracing::info!(job = %id, state = ?job.state, "dictionary job ended");
+                    tracing::info!(job = %id, kind = %job.kind, state = ?job.state, "job ended");
                 }
             }
             self.persist(&id);
@@ -382,6 +427,57 @@ impl Jobs {
         Ok(dict_id)
     }
 
+    /// Synthesizes the terrain of sketch job `id` from its stored exemplars and hands it to the
+    /// job's `finish`; the world's name.
+    fn run_sketch(
+        &self,
+        id: &str,
+        request: &SketchRequest,
+        cancel: &AtomicBool,
+    ) -> Result<String, BuildFailure> {
+        let job = lock(&self.inner.sketches).remove(id).ok_or_else(|| {
+            BuildFailure::Invalid("the sketch job lost its state (server restarted)".into())
+        })?;
+        let mut exemplars: Vec<Grid> = Vec::new();
+        for ex_id in &request.exemplars {
+            let payload = self
+                .inner
+                .store
+                .get_object(ObjectKind::Exemplar, ex_id)?
+                .ok_or_else(|| BuildFailure::Invalid(format!("exemplar {ex_id} is gone")))?;
+            let (_, raster) = exemplar::decode(&payload)?;
+            let grid = raster.elevation().ok_or_else(|| {
+                BuildFailure::Invalid(format!("exemplar {ex_id} has no elevation"))
+            })?;
+            exemplars.push(grid);
+        }
+        self.set_progress(id, "reading", 0.05);
+        let mut last = std::time::Instant::now();
+        let grid = run_sketch(
+            &job.sketch,
+            &exemplars,
+            request.seed.unwrap_or(1),
+            &mut |stage, f| {
+                let p = match stage {
+                    "exemplars" => 0.05 + 0.05 * f,
+                    "features" => 0.1 + 0.5 * f,
+                    "filling" => 0.6 + 0.3 * f,
+                    _ => 0.9 + 0.05 * f,
+                };
+                if last.elapsed().as_millis() >= 100 || f >= 1.0 {
+                    last = std::time::Instant::now();
+                    self.set_progress(id, stage, p);
+                }
+                !cancel.load(Ordering::Relaxed)
+            },
+        )?;
+        self.set_progress(id, "storing", 0.97);
+        if cancel.load(Ordering::Relaxed) {
+            return Err(BuildFailure::Cancelled);
+        }
+        Ok((job.finish)(grid).map_err(SketchFailure::Service)?)
+    }
+
     fn persist(&self, id: &str) {
         let json = lock(&self.inner.records)
             .get(id)
@@ -395,10 +491,31 @@ impl Jobs {
 
     /// Queues a build; the job id. 503 when the queue is full.
     pub fn submit(&self, request: DictionaryRequest) -> Result<Job, ServiceError> {
-        let id = new_id(&request.name);
+        let name = request.name.clone();
+        self.queue("dictionary", &name, JobRequest::Dictionary(request), None)
+    }
+
+    /// Queues a sketch world; the job. 503 when the queue is full.
+    pub fn submit_sketch(
+        &self,
+        request: SketchRequest,
+        job: SketchJob,
+    ) -> Result<Job, ServiceError> {
+        let name = request.name.clone();
+        self.queue("sketch", &name, JobRequest::Sketch(request), Some(job))
+    }
+
+    fn queue(
+        &self,
+        kind: &str,
+        name: &str,
+        request: JobRequest,
+        sketch: Option<SketchJob>,
+    ) -> Result<Job, ServiceError> {
+        let id = new_id(name);
         let job = Job {
             id: id.clone(),
-            kind: "dictionary".into(),
+            kind: kind.into(),
             state: JobState::Queued,
             progress: 0.0,
             stage: "queued".into(),
@@ -410,6 +527,9 @@ impl Jobs {
             request,
         };
         lock(&self.inner.records).insert(id.clone(), job.clone());
+        if let Some(s) = sketch {
+            lock(&self.inner.sketches).insert(id.clone(), s);
+        }
         match self.inner.tx.try_send(id.clone()) {
             Ok(()) => {
                 self.persist(&id);
@@ -417,6 +537,7 @@ impl Jobs {
             }
             Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
                 lock(&self.inner.records).remove(&id);
+                lock(&self.inner.sketches).remove(&id);
                 Err(ServiceError::QueueFull)
             }
         }
@@ -443,6 +564,7 @@ impl Jobs {
                 .ok_or_else(|| ServiceError::NotFound(format!("no job `{id}`")))?;
             match job.state {
                 JobState::Queued => {
+                    lock(&self.inner.sketches).remove(id);
                     job.state = JobState::Cancelled;
                     job.stage = "cancelled".into();
                     job.finished = Some(now_rfc3339());
@@ -468,7 +590,7 @@ impl Jobs {
     pub fn uses_exemplar(&self, id: &str) -> bool {
         lock(&self.inner.records)
             .values()
-            .any(|j| j.state.is_active() && j.request.exemplars.iter().any(|e| e == id))
+            .any(|j| j.state.is_active() && j.request.exemplars().iter().any(|e| e == id))
     }
 }
 

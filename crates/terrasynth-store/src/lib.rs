@@ -1,6 +1,6 @@
 //! The on-disk store ([`store`]) and the catalogue service over it ([`service`]: the admin API's
-//! rules without HTTP — the in-memory [`catalog`], build [`jobs`], upload decoding in [`ingest`],
-//! world definitions in [`worlds`]).
+//! rules without HTTP — the in-memory [`catalog`], build and sketch [`jobs`], upload decoding in
+//! [`ingest`], world definitions in [`worlds`], sketch worlds in [`sketch`]).
 //!
 //! The store holds content-addressed, immutable objects — exemplars, dictionaries and world
 //! definitions, each named by the hex SHA-256 of its canonical bytes — human-name aliases, and
@@ -17,7 +17,7 @@
 //! | `dictionaries/{id}.dict` | a dictionary in `dictionary::format` (its id is its checksum) |
 //! | `exemplars/{id}.obj`, `worlds/{id}.obj` | an object envelope ([`object`]): magic, kind, version, payload, SHA-256 |
 //! | `aliases/{name}` | the id an alias points at (`exemplar.N`, `dictionary.N`, `world.N`; `world-…` for configured worlds' dictionaries) |
-//! | `jobs/{id}.json` | the record of a dictionary build job (rewritten atomically) |
+//! | `jobs/{id}.json` | the record of a dictionary build or sketch job (rewritten atomically) |
 //! | `corrupt/` | objects that failed verification |
 
 pub mod catalog;
@@ -27,13 +27,15 @@ pub mod ingest;
 pub mod jobs;
 pub mod object;
 pub mod service;
+pub mod sketch;
 pub mod store;
 pub mod time;
 pub mod worlds;
 
 pub use catalog::{Catalog, DictionaryInfo, ExemplarInfo, Statistics};
 pub use error::{ServiceError, StoreError};
-pub use jobs::{DictionaryRequest, Job, JobSettings, JobState};
+pub use jobs::{DictionaryRequest, Job, JobRequest, JobSettings, JobState};
 pub use service::{Catalogue, ResolvedWorld};
+pub use sketch::SketchRequest;
 pub use store::{write_atomically, ObjectKind, Store, MAX_DICTIONARY_BYTES, STORE_VERSION};
 pub use worlds::{WorldDefaults, WorldDefinition, WorldRequest};

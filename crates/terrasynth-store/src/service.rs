@@ -12,16 +12,29 @@ use terrasynth_core::dictionary::Dictionary;
 use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_core::names::is_content_id;
 use terrasynth_core::raster::{Grid, LayeredRaster};
+use terrasynth_core::synth::sketch::SizeLimits;
 
 use crate::catalog::{exemplar_info, lock, Catalog, DictionaryInfo, ExemplarInfo};
 use crate::error::{ServiceError, StoreError};
 use crate::exemplar;
-use crate::jobs::{build_options, DictionaryRequest, Job, JobSettings, Jobs};
+use crate::jobs::{
+    build_options, DictionaryRequest, Job, JobRequest, JobSettings, Jobs, SketchJob,
+};
+use crate::sketch::SketchRequest;
 use crate::store::{ObjectKind, Store};
-use crate::worlds::{check_name, WorldDefaults, WorldDefinition};
+use crate::worlds::{check_name, WorldDefaults, WorldDefinition, WorldRequest};
 
 /// Most exemplars one build may read.
 pub const MAX_BUILD_EXEMPLARS: usize = 64;
+
+/// Whether a world of this name is served (the caller knows the live worlds).
+pub type Served = Arc<dyn Fn(&str) -> bool + Send + Sync>;
+
+/// What starts serving a stored world: called once its definition is stored.
+pub type Publish = Box<dyn FnOnce() + Send>;
+
+/// Builds what serves a resolved world (CPU-bound) and returns how to publish it.
+pub type Assemble = Box<dyn FnOnce(ResolvedWorld) -> Result<Publish, ServiceError> + Send>;
 
 /// A world definition resolved against the store: everything needed to serve it.
 #[derive(Clone, Debug)]
@@ -328,6 +341,99 @@ impl Catalogue {
         self.store.set_alias(&alias, &id)?;
         tracing::info!(world = %def.name, id = %id, "world stored");
         Ok((built, id))
+    }
+
+    /// Checks a sketch world request and queues its job. Everything that can be checked before
+    /// the synthesis is checked here, so that a refused request stores nothing: the name (valid,
+    /// not taken, not being made by another sketch job), the bounds and cell size against
+    /// `limits`, the sketch, the exemplars and the dictionary. When the job has made the
+    /// terrain, it is stored as exemplar `sketch-{name}` (the world's base), the world is
+    /// created from it like `POST /admin/worlds` (`assemble`, then the definition is stored,
+    /// then published), and the job's result is the world's name; if that fails the base is
+    /// deleted again.
+    pub fn submit_sketch(
+        self: &Arc<Self>,
+        request: SketchRequest,
+        limits: &SizeLimits,
+        served: Served,
+        assemble: Assemble,
+    ) -> Result<Job, ServiceError> {
+        let sketch = request.checked_sketch(limits)?;
+        if let Some(e) = request
+            .exemplars
+            .iter()
+            .find(|e| !self.catalog.has_exemplar(e))
+        {
+            return Err(ServiceError::Invalid(format!("unknown exemplar `{e}`")));
+        }
+        let def = WorldDefinition::from_request(
+            WorldRequest {
+                name: request.name.clone(),
+                base: String::new(),
+                dictionaries: request.dictionaries.clone(),
+                max_zoom: None,
+                weights: None,
+                materials: None,
+                species: None,
+                title: None,
+                attribution: None,
+                fill_m: None,
+                center: None,
+            },
+            &self.defaults,
+        )?;
+        let dict = def.dictionary()?;
+        if self.catalog.dictionary(dict).is_none() {
+            return Err(ServiceError::Invalid(format!(
+                "unknown dictionary `{dict}`"
+            )));
+        }
+        let name = def.name.clone();
+        let pending = self.jobs.list().into_iter().any(|j| {
+            j.state.is_active() && matches!(&j.request, JobRequest::Sketch(r) if r.name == name)
+        });
+        if self.configured.contains(&name)
+            || served(&name)
+            || self.store.alias(&format!("world.{name}"))?.is_some()
+            || pending
+        {
+            return Err(ServiceError::Conflict(format!(
+                "world `{name}` already exists"
+            )));
+        }
+        let this = self.clone();
+        let finish = Box::new(move |grid: Grid| this.finish_sketch(def, grid, &served, assemble));
+        let job = self
+            .jobs
+            .submit_sketch(request, SketchJob { sketch, finish })?;
+        tracing::info!(job = %job.id, world = %name, "sketch job queued");
+        Ok(job)
+    }
+
+    /// Stores a sketch job's terrain as the base of world `def` and creates the world.
+    fn finish_sketch(
+        &self,
+        mut def: WorldDefinition,
+        grid: Grid,
+        served: &Served,
+        assemble: Assemble,
+    ) -> Result<String, ServiceError> {
+        let mut base_name = format!("sketch-{}", def.name);
+        base_name.truncate(64);
+        let info = self.put_exemplar(&base_name, &LayeredRaster::from_elevation(grid))?;
+        def.base = info.id.clone();
+        match self.create_world(&def, |n| served(n), assemble) {
+            Ok((publish, _)) => {
+                publish();
+                Ok(def.name)
+            }
+            Err(e) => {
+                if let Err(d) = self.delete_exemplar(&info.id) {
+                    tracing::warn!(exemplar = %info.id, error = %d, "cannot delete the base of a failed sketch world");
+                }
+                Err(e)
+            }
+        }
     }
 
     /// Deletes the stored world `name`; configured worlds are read-only.

@@ -69,6 +69,11 @@ impl ElevationLevels {
         &self.extent
     }
 
+    /// The base raster.
+    pub fn base(&self) -> &Grid {
+        &self.base
+    }
+
     /// Elevation outside the base, metres.
     pub fn fill_m(&self) -> f32 {
         self.fill_m

@@ -59,6 +59,9 @@ pub enum TileError {
     /// Tile bytes could not be produced.
     #[error("cannot encode tile: {0}")]
     Encode(String),
+    /// The base raster cannot be analysed (no valid cell).
+    #[error("base raster: {0}")]
+    Raster(String),
     /// Tile bytes could not be read back.
     #[error("cannot decode tile: {0}")]
     Decode(String),

@@ -2,15 +2,18 @@
 //! elevation, drainage and vegetation, plus splat weights and colour inputs computed per tile —
 //! built from its [`WorldParts`]. The world's cache budget is shared by its whole-world layers
 //! (first) and its level caches: half for elevation, a quarter each for vegetation and drainage.
+//! The ridges and valleys of the base (PPA) are computed once, on first use, outside that
+//! budget.
 
 use std::sync::atomic::Ordering;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use ndarray::Array2;
 
+use terrasynth_core::analysis::ppa::{self, Features, PpaParams};
 use terrasynth_core::dictionary::{Dictionary, MatchWeights};
 use terrasynth_core::landscape::LandscapeConfig;
-use terrasynth_core::raster::{CellSizes, Grid};
+use terrasynth_core::raster::{CellSizes, Georef, Grid};
 use terrasynth_core::synth::{Amplifier, Window};
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
@@ -81,6 +84,8 @@ pub struct World {
     whole: WholeWorld,
     drainage: DrainageLevels,
     vegetation: VegetationLevels,
+    /// The base's ridges and valleys, once computed (the lock coalesces concurrent first uses).
+    features: Mutex<Option<Arc<Features>>>,
 }
 
 impl std::fmt::Debug for World {
@@ -155,6 +160,7 @@ impl World {
             drainage: DrainageLevels::new(budget / 4),
             vegetation: VegetationLevels::new(landscape.clone(), layer_amplifier, budget / 4),
             landscape,
+            features: Mutex::new(None),
         })
     }
 
@@ -210,6 +216,32 @@ impl World {
     /// Fill elevation outside the base coverage, metres.
     pub fn fill_m(&self) -> f32 {
         self.elevation.fill_m()
+    }
+
+    /// The georeference of the base raster.
+    pub fn base_georef(&self) -> Georef {
+        self.elevation.base().georef
+    }
+
+    /// The ridges and valleys of the base raster (PPA with default parameters, on the base with
+    /// its invalid cells filled), computed on the first call and kept (CPU-bound: call it off
+    /// any async runtime). Concurrent first calls wait for one computation.
+    pub fn features(&self) -> Result<Arc<Features>, TileError> {
+        let mut slot = self
+            .features
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(f) = slot.as_ref() {
+            return Ok(f.clone());
+        }
+        let z = self
+            .elevation
+            .base()
+            .filled()
+            .map_err(|e| TileError::Raster(e.to_string()))?;
+        let f = Arc::new(ppa::features(&z, &PpaParams::default()));
+        *slot = Some(f.clone());
+        Ok(f)
     }
 
     /// Bounds `[w, s, e, n]` in degrees.

@@ -1,5 +1,6 @@
 //! `/admin/worlds`: create a world from a stored base and dictionary (served at once, loaded
-//! again at every start) and delete it.
+//! again at every start), make one from a sketch (a job: `/admin/worlds/sketch`), and delete
+//! one.
 
 use std::sync::Arc;
 
@@ -10,7 +11,9 @@ use axum::Json;
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use terrasynth_store::{ServiceError, WorldDefinition, WorldRequest};
+use terrasynth_core::synth::sketch::SizeLimits;
+use terrasynth_store::service::{Assemble, Publish, Served};
+use terrasynth_store::{Job, ServiceError, SketchRequest, WorldDefinition, WorldRequest};
 
 use super::extract::json_body;
 use crate::server::error::{Problem, ServerError};
@@ -75,6 +78,61 @@ pub async fn post_world(
         world: def,
     };
     Ok((StatusCode::CREATED, Json(body)).into_response())
+}
+
+/// Make a world from a sketch: ridge and valley lines become terrain made of patches of the
+/// given exemplars (feature-guided synthesis), stored as the world's base, amplified by the
+/// given dictionary. Answers at once with the job; poll `/admin/jobs/{id}` for its progress.
+/// When it succeeds the world is served (and its `result` is the world's name).
+#[utoipa::path(post, path = "/admin/worlds/sketch", tag = "admin", security(("bearer" = [])),
+    request_body = SketchRequest,
+    responses(
+        (status = 202, description = "Queued; poll the job", body = Job),
+        (status = 400, description = "Malformed JSON", body = Problem, content_type = "application/problem+json"),
+        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "Name taken (or being made)", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body too large", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Not JSON", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Bad sketch (no lines, outside the bounds, crossing itself, over 10 000 vertices), bounds or cell size over the size limits, unknown exemplar or dictionary; nothing is stored", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Job queue full", body = Problem, content_type = "application/problem+json")
+    ))]
+pub async fn post_sketch_world(
+    State(state): State<AppState>,
+    req: Request,
+) -> Result<Response, ServerError> {
+    let admin = state.admin()?;
+    let request: SketchRequest = json_body(req).await?;
+    let catalogue = admin.catalogue.clone();
+    let defaults = SizeLimits::default();
+    let limits = SizeLimits {
+        max_pixels: defaults.max_pixels.min(admin.limits.read.max_pixels),
+        max_dimension: defaults.max_dimension.min(admin.limits.max_dimension),
+    };
+    let live = state.live.clone();
+    let served: Served = {
+        let live = live.clone();
+        Arc::new(move |name: &str| live.get(name).is_some())
+    };
+    let cache_bytes = admin.cache_bytes;
+    let assemble: Assemble = Box::new(move |resolved| {
+        let world = world_from(resolved, cache_bytes)
+            .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))?;
+        let world = Arc::new(world);
+        let publish: Publish = Box::new(move || {
+            live.insert(world.clone());
+            prepare_landscapes(vec![world]);
+        });
+        Ok(publish)
+    });
+    // Checking the sketch and the store and writing the job record: off the runtime.
+    let job =
+        blocking(move || Ok(catalogue.submit_sketch(request, &limits, served, assemble)?)).await?;
+    let location = format!("/admin/jobs/{}", job.id);
+    let mut resp = (StatusCode::ACCEPTED, Json(job)).into_response();
+    if let Ok(v) = axum::http::HeaderValue::from_str(&location) {
+        resp.headers_mut().insert(axum::http::header::LOCATION, v);
+    }
+    Ok(resp)
 }
 
 /// Delete a world.

@@ -2,6 +2,9 @@
 // overlays (colour map, splat set 0 in false colour, vegetation, drainage), a world picker fed by
 // /worlds, and a readout of zoom, cursor position and the elevation decoded from the terrarium
 // tile under the cursor. MapLibre is loaded from this server (/vendor/maplibre-gl/), never a CDN.
+// Sketch mode: draw ridge and valley lines (click to add points, "Finish line" or double-click
+// to end one), choose an exemplar and a dictionary (listed with the admin token), submit to
+// POST /admin/worlds/sketch, follow the job's progress and open the new world.
 // The browser test drives the page through `window.terrasynth`.
 
 const OVERLAYS = [
@@ -225,7 +228,160 @@ async function main() {
     if (ticket === pending) $('readout-elevation').textContent = h === null ? '–' : `${h.toFixed(1)} m`;
   });
 
-  window.terrasynth = { map, world, ready, setOverlay, overlays: OVERLAYS, elevationAt };
+  const sketch = sketchMode(map, ready);
+  window.terrasynth = { map, world, ready, setOverlay, overlays: OVERLAYS, elevationAt, sketch };
+}
+
+// The sketch mode's state and controls; returns the functions the browser test calls.
+function sketchMode(map, ready) {
+  const lines = []; // { kind, coordinates: [[lon, lat], ...] }
+  let current = null;
+  const kind = () => document.querySelector('input[name="sketch-kind"]:checked').value;
+  const token = () => $('sketch-token').value.trim();
+  const status = (t) => { $('sketch-status').textContent = t; };
+
+  function geojson() {
+    const all = current && current.coordinates.length >= 2 ? [...lines, current] : lines;
+    return {
+      type: 'FeatureCollection',
+      features: all.map((l) => ({
+        type: 'Feature',
+        properties: { kind: l.kind },
+        geometry: { type: 'LineString', coordinates: l.coordinates },
+      })),
+    };
+  }
+
+  function redraw() {
+    const src = map.getSource('sketch');
+    if (src) src.setData(geojson());
+    $('sketch-count').textContent = `${lines.length} line${lines.length === 1 ? '' : 's'}`;
+  }
+
+  ready.then(() => {
+    map.addSource('sketch', { type: 'geojson', data: geojson() });
+    map.addLayer({
+      id: 'sketch-lines',
+      type: 'line',
+      source: 'sketch',
+      paint: {
+        'line-width': 3,
+        'line-color': ['match', ['get', 'kind'], 'ridge', '#d72323', '#1e46e1'],
+      },
+    });
+  });
+
+  function startLine() {
+    current = { kind: kind(), coordinates: [] };
+    $('sketch-finish').disabled = false;
+    map.doubleClickZoom.disable();
+    map.getCanvas().style.cursor = 'crosshair';
+    status(`drawing a ${current.kind}: click to add points`);
+  }
+
+  function finishLine() {
+    if (current && current.coordinates.length >= 2) lines.push(current);
+    current = null;
+    $('sketch-finish').disabled = true;
+    map.doubleClickZoom.enable();
+    map.getCanvas().style.cursor = '';
+    status('');
+    redraw();
+  }
+
+  // Adds a whole line (the browser test draws through this as well as through clicks).
+  function addLine(k, coordinates) {
+    lines.push({ kind: k, coordinates });
+    redraw();
+  }
+
+  map.on('click', (e) => {
+    if (!current) return;
+    current.coordinates.push([e.lngLat.lng, e.lngLat.lat]);
+    redraw();
+  });
+  map.on('dblclick', () => { if (current) finishLine(); });
+
+  // The world's bounds: the lines' bounding box with a margin of a fifth of its size (at least
+  // 32 cells).
+  function bounds(cell) {
+    const pts = lines.flatMap((l) => l.coordinates);
+    const xs = pts.map((p) => p[0]);
+    const ys = pts.map((p) => p[1]);
+    const [w, e, s, n] = [Math.min(...xs), Math.max(...xs), Math.min(...ys), Math.max(...ys)];
+    const mx = Math.max((e - w) / 5, 16 * cell);
+    const my = Math.max((n - s) / 5, 16 * cell);
+    return [w - mx, s - my, e + mx, n + my];
+  }
+
+  async function loadChoices() {
+    const ex = await fetch('/admin/exemplars', { headers: { Authorization: `Bearer ${token()}` } });
+    if (!ex.ok) { status(`exemplars: HTTP ${ex.status}`); return false; }
+    const fill = (id, items, label) => {
+      const sel = $(id);
+      sel.replaceChildren();
+      for (const it of items) {
+        const o = document.createElement('option');
+        o.value = it.id;
+        o.textContent = label(it);
+        sel.appendChild(o);
+      }
+    };
+    fill('sketch-exemplar', await ex.json(), (e) => `${e.name} (${e.width}×${e.height})`);
+    fill('sketch-dictionary', await getJson('/dictionaries'), (d) => d.name || d.id.slice(0, 12));
+    status('');
+    return true;
+  }
+
+  async function submit() {
+    if (current) finishLine();
+    if (lines.length === 0) { status('draw at least one line'); return null; }
+    const cell = Number($('sketch-cell').value);
+    const name = $('sketch-name').value.trim();
+    const body = {
+      name,
+      sketch: geojson(),
+      bounds: bounds(cell),
+      cell_size: cell,
+      exemplars: [$('sketch-exemplar').value],
+      dictionaries: [$('sketch-dictionary').value],
+      seed: 1,
+    };
+    const auth = { Authorization: `Bearer ${token()}` };
+    const r = await fetch('/admin/worlds/sketch', {
+      method: 'POST',
+      headers: { ...auth, 'Content-Type': 'application/json' },
+      body: JSON.stringify(body),
+    });
+    const job = await r.json();
+    if (r.status !== 202) { status(`refused: ${job.detail || r.status}`); return null; }
+    const bar = $('sketch-progress');
+    bar.hidden = false;
+    for (;;) {
+      const j = await (await fetch(`/admin/jobs/${job.id}`, { headers: auth })).json();
+      bar.value = j.progress;
+      status(`${j.stage} ${(100 * j.progress).toFixed(0)} %`);
+      if (j.state === 'succeeded') {
+        const link = $('sketch-open');
+        link.href = `/?world=${encodeURIComponent(j.result)}`;
+        link.hidden = false;
+        status(`world ${j.result} is ready`);
+        return j;
+      }
+      if (j.state !== 'queued' && j.state !== 'running') {
+        status(`${j.state}: ${j.error || ''}`);
+        return j;
+      }
+      await new Promise((res) => { setTimeout(res, 500); });
+    }
+  }
+
+  $('sketch-draw').addEventListener('click', startLine);
+  $('sketch-finish').addEventListener('click', finishLine);
+  $('sketch-clear').addEventListener('click', () => { lines.length = 0; current = null; redraw(); });
+  $('sketch-load').addEventListener('click', loadChoices);
+  $('sketch-submit').addEventListener('click', submit);
+  return { addLine, startLine, finishLine, loadChoices, submit, geojson, bounds };
 }
 
 main();

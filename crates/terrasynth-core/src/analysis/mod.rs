@@ -14,6 +14,8 @@
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
 //! - [`spectrum`]: FFT and radial band energy.
 //! - [`realism`]: pixel-axis anisotropy of the spectrum, drainage density, curvature values.
+//! - [`ppa`]: ridges and valleys (Profile-recognition and Polygon-breaking Algorithm), and their
+//!   agreement with D8 drainage; [`ppa_naive`]: its references.
 //! - [`naive`]: slow reference implementations for tests.
 
 pub mod breach;
@@ -24,6 +26,8 @@ pub mod flow;
 pub mod hillshade;
 pub mod metrics;
 pub mod naive;
+pub mod ppa;
+pub mod ppa_naive;
 pub mod realism;
 pub mod spectrum;
 

@@ -1,8 +1,9 @@
 //! Amplification: one ×2 level on a global lattice of primitives ([`level`]) with its switches
 //! ([`levers`]) and up-sampling kernels ([`kernel`]), the windows and fields it works on
 //! ([`field`]), and chains of levels from a base ([`chain`]); compact terrains on the same
-//! lattice (sparse construction trees, [`compact`], and their file format, [`compact_format`]).
-//! Everything is a
+//! lattice (sparse construction trees, [`compact`], and their file format, [`compact_format`]);
+//! and sketch synthesis, which makes a base from ridge and valley lines ([`sketch`]). Everything
+//! is a
 //! pure function of the parent values, the dictionary and the requested pixels: no caching, no
 //! HTTP, no dependence on thread count.
 
@@ -15,6 +16,7 @@ pub mod field;
 pub mod kernel;
 pub mod level;
 pub mod levers;
+pub mod sketch;
 
 pub use chain::{amplify_chain, chain_windows, BaseSource, ClampedRaster};
 pub use error::SynthError;

@@ -1,0 +1,832 @@
+//! Ridges and valleys by the Profile-recognition and Polygon-breaking Algorithm (PPA; Chang, Song
+//! & Liu 1998, "Ridge and valley detection from DEMs"), as feature-guided synthesis (Zhou et al.
+//! 2007) uses it to describe both an exemplar and a user's sketch:
+//!
+//! 1. **Profile recognition.** A cell is a ridge *candidate* when, along at least one of four
+//!    profiles through it (east–west, north–south and the two diagonals), both sides hold a cell
+//!    lower by more than `min_drop` within `window` cells. Valleys are ridges of the negated DEM.
+//! 2. **Target connection.** Every pair of 8-adjacent candidates is joined by a segment whose
+//!    elevation is the sum of its ends' (for valleys, of the negated ends'); of two crossing
+//!    diagonals only the higher is kept.
+//! 3. **Polygon breaking.** The lowest segment of every closed polygon is removed until none is
+//!    left. With segments totally ordered (elevation, then cell indices) this leaves the unique
+//!    maximum spanning forest of the segment graph, computed here by Kruskal's algorithm with a
+//!    union–find; [`naive::break_polygons`](super::ppa_naive::break_polygons) removes cycles one
+//!    by one instead, and property tests compare the two.
+//! 4. **Branch reduction.** Passes remove every end branch (from an end point to the nearest
+//!    branch point) shorter than `min_branch` cells, and every tree smaller than that, until a
+//!    pass changes nothing.
+//!
+//! The result ([`FeatureTree`]) is a forest of cells: its branch points (degree ≥ 3), end
+//! points (degree 1) and the paths between them. Everything is deterministic (fixed orders, total
+//! tie-breaks, single-threaded) and pure; NaN cells are never candidates and never count as
+//! lower or higher.
+//!
+//! [`drainage_agreement`] measures how well valleys follow D8 channels and ridges separate D8
+//! basins (the acceptance figures).
+
+use std::collections::BTreeSet;
+
+use ndarray::Array2;
+
+use super::common::values;
+use super::flow::{d8_receivers, flow_accumulation_from_receivers};
+use super::{priority_flood_fill, D8_NONE, D8_OFFSETS};
+use crate::raster::CellSizes;
+
+/// Which feature a tree describes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum FeatureKind {
+    /// Crest lines: local maxima of cross-profiles.
+    Ridge,
+    /// Thalwegs: local minima of cross-profiles.
+    Valley,
+}
+
+impl FeatureKind {
+    /// `"ridge"` or `"valley"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FeatureKind::Ridge => "ridge",
+            FeatureKind::Valley => "valley",
+        }
+    }
+
+    /// The kind named `s` (`ridge` or `valley`).
+    pub fn parse(s: &str) -> Option<FeatureKind> {
+        match s {
+            "ridge" => Some(FeatureKind::Ridge),
+            "valley" => Some(FeatureKind::Valley),
+            _ => None,
+        }
+    }
+}
+
+/// Parameters of the PPA.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PpaParams {
+    /// Cells on each side of a profile (≥ 1).
+    pub window: usize,
+    /// Drop (metres) a profile side must show below the cell (above it for valleys), ≥ 0.
+    pub min_drop: f32,
+    /// End branches and trees shorter than this many cells are removed (0 keeps everything).
+    pub min_branch: usize,
+}
+
+impl Default for PpaParams {
+    /// Profiles of 3 cells each side, any drop, branches of fewer than 6 cells pruned: on the
+    /// Tien Shan at 15″ (≈ 460 m cells) valleys then cover more than 90 % of the D8 channel
+    /// cells draining 10 km² or more (README, "Feature extraction").
+    fn default() -> Self {
+        PpaParams {
+            window: 3,
+            min_drop: 0.0,
+            min_branch: 6,
+        }
+    }
+}
+
+/// Class of a node of a feature tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum NodeClass {
+    /// Degree 1: where a line ends.
+    End,
+    /// Degree 2: on a path.
+    Path,
+    /// Degree ≥ 3: where lines meet.
+    Branch,
+}
+
+impl NodeClass {
+    /// The class of a node of `degree` (0 counts as an end).
+    pub fn of_degree(degree: usize) -> NodeClass {
+        match degree {
+            0 | 1 => NodeClass::End,
+            2 => NodeClass::Path,
+            _ => NodeClass::Branch,
+        }
+    }
+}
+
+/// A path of a feature tree: cells from one key node (end or branch point) to the next, every
+/// cell in between of degree 2.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeaturePath {
+    /// Row-major cell indices, in order; consecutive cells are 8-adjacent.
+    pub cells: Vec<usize>,
+    /// Mean elevation of the cells, metres (NaN cells never occur).
+    pub mean_elevation: f64,
+}
+
+/// The ridges or valleys of a grid: a forest of cells.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureTree {
+    /// Ridge or valley.
+    pub kind: FeatureKind,
+    /// Grid rows.
+    pub rows: usize,
+    /// Grid columns.
+    pub cols: usize,
+    /// Segments `(a, b)` with `a < b` (row-major cell indices), sorted.
+    pub edges: Vec<(usize, usize)>,
+    /// Paths between key nodes, in the order of their first cell, then second.
+    pub paths: Vec<FeaturePath>,
+}
+
+impl FeatureTree {
+    /// Degree of every cell in the forest (0 outside it).
+    pub fn degrees(&self) -> Vec<u8> {
+        let mut d = vec![0u8; self.rows * self.cols];
+        for &(a, b) in &self.edges {
+            d[a] = d[a].saturating_add(1);
+            d[b] = d[b].saturating_add(1);
+        }
+        d
+    }
+
+    /// Every cell of the forest, sorted.
+    pub fn cells(&self) -> Vec<usize> {
+        let set: BTreeSet<usize> = self.edges.iter().flat_map(|&(a, b)| [a, b]).collect();
+        set.into_iter().collect()
+    }
+
+    /// The key nodes (end and branch points) with their class, sorted by cell.
+    pub fn key_points(&self) -> Vec<(usize, NodeClass)> {
+        let d = self.degrees();
+        self.cells()
+            .into_iter()
+            .filter(|&i| d[i] != 2)
+            .map(|i| (i, NodeClass::of_degree(d[i] as usize)))
+            .collect()
+    }
+
+    /// A `rows × cols` mask of the forest's cells.
+    pub fn mask(&self) -> Array2<bool> {
+        let mut m = Array2::from_elem((self.rows, self.cols), false);
+        if let Some(s) = m.as_slice_mut() {
+            for &(a, b) in &self.edges {
+                s[a] = true;
+                s[b] = true;
+            }
+        }
+        m
+    }
+}
+
+/// Ridges and valleys of one grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Features {
+    /// The ridge forest.
+    pub ridges: FeatureTree,
+    /// The valley forest.
+    pub valleys: FeatureTree,
+}
+
+impl Features {
+    /// The tree of `kind`.
+    pub fn tree(&self, kind: FeatureKind) -> &FeatureTree {
+        match kind {
+            FeatureKind::Ridge => &self.ridges,
+            FeatureKind::Valley => &self.valleys,
+        }
+    }
+}
+
+/// `z` oriented so that the features of `kind` are ridges: `z` itself for ridges, `−z` for
+/// valleys (exact in floating point).
+pub fn oriented(z: &Array2<f32>, kind: FeatureKind) -> Vec<f32> {
+    let v = values(z);
+    match kind {
+        FeatureKind::Ridge => v.into_owned(),
+        FeatureKind::Valley => v.iter().map(|&x| -x).collect(),
+    }
+}
+
+/// The four profile directions `(row step, column step)`: east, south, south-east, south-west.
+pub const PROFILE_DIRECTIONS: [(isize, isize); 4] = [(0, 1), (1, 0), (1, 1), (1, -1)];
+
+/// Row-major cell indices of the line through a `rows × cols` grid that starts at `(r, c)` and
+/// steps by `(dr, dc)` until it leaves the grid.
+fn line(rows: usize, cols: usize, mut r: usize, mut c: usize, dr: isize, dc: isize) -> Vec<usize> {
+    let mut out = Vec::new();
+    loop {
+        out.push(r * cols + c);
+        match (r.checked_add_signed(dr), c.checked_add_signed(dc)) {
+            (Some(nr), Some(nc)) if nr < rows && nc < cols => {
+                r = nr;
+                c = nc;
+            }
+            _ => return out,
+        }
+    }
+}
+
+/// Every line of direction `(dr, dc)` through the grid, each as its cell indices in order.
+pub(crate) fn lines(rows: usize, cols: usize, dr: isize, dc: isize) -> Vec<Vec<usize>> {
+    if rows == 0 || cols == 0 {
+        return Vec::new();
+    }
+    let mut starts: Vec<(usize, usize)> = Vec::new();
+    match (dr, dc) {
+        (0, _) => starts.extend((0..rows).map(|r| (r, 0))),
+        (_, 0) => starts.extend((0..cols).map(|c| (0, c))),
+        (_, 1) => {
+            // South-east: start on the top row and the left column.
+            starts.extend((0..cols).map(|c| (0, c)));
+            starts.extend((1..rows).map(|r| (r, 0)));
+        }
+        _ => {
+            // South-west: start on the top row and the right column.
+            starts.extend((0..cols).map(|c| (0, c)));
+            starts.extend((1..rows).map(|r| (r, cols - 1)));
+        }
+    }
+    starts
+        .into_iter()
+        .map(|(r, c)| line(rows, cols, r, c, dr, dc))
+        .collect()
+}
+
+/// Minimum over each window of `w` values *after* position `i` (`v[i+1..=i+w]`, clipped to the
+/// line), with NaN read as +∞ (never lower); `+∞` when the window is empty. Van Herk /
+/// Gil-Werman: block prefix and suffix minima, O(1) per element whatever `w`.
+fn forward_window_min(v: &[f32], w: usize) -> Vec<f32> {
+    let n = v.len();
+    let x: Vec<f32> = v
+        .iter()
+        .map(|&a| if a.is_nan() { f32::INFINITY } else { a })
+        .collect();
+    let mut out = vec![f32::INFINITY; n];
+    if n == 0 || w == 0 {
+        return out;
+    }
+    // prefix[i]: min of x from the start of i's block to i; suffix[i]: from i to its block's end.
+    let mut prefix = x.clone();
+    let mut suffix = x.clone();
+    for i in 1..n {
+        if i % w != 0 {
+            prefix[i] = prefix[i - 1].min(x[i]);
+        }
+    }
+    for i in (0..n.saturating_sub(1)).rev() {
+        if (i + 1) % w != 0 {
+            suffix[i] = suffix[i + 1].min(x[i]);
+        }
+    }
+    for (i, o) in out.iter_mut().enumerate() {
+        let lo = i + 1;
+        if lo >= n {
+            continue;
+        }
+        let hi = (i + w).min(n - 1);
+        // [lo, hi] spans at most two blocks: the suffix of lo's block and the prefix of hi's.
+        *o = if lo / w == hi / w {
+            // Within one block: suffix minima run to the block's end, so scan (at most w).
+            x[lo..=hi].iter().fold(f32::INFINITY, |m, &a| m.min(a))
+        } else {
+            suffix[lo].min(prefix[hi])
+        };
+    }
+    out
+}
+
+/// Candidate cells of the PPA's profile recognition on `z` (already oriented: ridges are maxima):
+/// `true` where along at least one of [`PROFILE_DIRECTIONS`] both sides hold, within `window`
+/// cells, a value lower than the cell's by more than `min_drop`.
+pub fn candidates(z: &[f32], rows: usize, cols: usize, params: &PpaParams) -> Vec<bool> {
+    let n = rows * cols;
+    let mut out = vec![false; n];
+    if z.len() != n || params.window == 0 {
+        return out;
+    }
+    let w = params.window;
+    let drop = params.min_drop.max(0.0);
+    for &(dr, dc) in &PROFILE_DIRECTIONS {
+        for cells in lines(rows, cols, dr, dc) {
+            let v: Vec<f32> = cells.iter().map(|&i| z[i]).collect();
+            let ahead = forward_window_min(&v, w);
+            let rev: Vec<f32> = v.iter().rev().copied().collect();
+            let mut behind = forward_window_min(&rev, w);
+            behind.reverse();
+            for (k, &i) in cells.iter().enumerate() {
+                let h = v[k];
+                // False for a NaN cell; +∞ minima (nothing or only NaN on a side) never pass.
+                if h - ahead[k] > drop && h - behind[k] > drop {
+                    out[i] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The segments of the target connection: `(weight, a, b)` with `a < b` for every pair of
+/// 8-adjacent candidates, weight = `z[a] + z[b]` in `f64`; of two crossing diagonals of a 2×2
+/// block only the heavier is kept (ties: the north-west–south-east one).
+pub fn segments(z: &[f32], rows: usize, cols: usize, cand: &[bool]) -> Vec<(f64, usize, usize)> {
+    let mut out = Vec::new();
+    if z.len() != rows * cols || cand.len() != rows * cols {
+        return out;
+    }
+    let w = |a: usize, b: usize| f64::from(z[a]) + f64::from(z[b]);
+    for r in 0..rows {
+        for c in 0..cols {
+            let i = r * cols + c;
+            if !cand[i] {
+                continue;
+            }
+            if c + 1 < cols && cand[i + 1] {
+                out.push((w(i, i + 1), i, i + 1));
+            }
+            if r + 1 < rows {
+                let s = i + cols;
+                if cand[s] {
+                    out.push((w(i, s), i, s));
+                }
+                // The diagonals of the block whose top-left cell is i: i–(s+1) and (i+1)–s.
+                if c + 1 < cols {
+                    let se = cand[s + 1].then(|| w(i, s + 1));
+                    let sw = (cand[i + 1] && cand[s]).then(|| w(i + 1, s));
+                    match (se, sw) {
+                        (Some(a), Some(b)) if b > a => out.push((b, i + 1, s)),
+                        (Some(a), _) => out.push((a, i, s + 1)),
+                        (None, Some(b)) => out.push((b, i + 1, s)),
+                        (None, None) => {}
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The total order of polygon breaking: heavier segments first, then by cell indices.
+pub fn segment_order(a: &(f64, usize, usize), b: &(f64, usize, usize)) -> std::cmp::Ordering {
+    b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
+}
+
+/// A union–find over `n` elements (path halving, union by size).
+struct UnionFind {
+    parent: Vec<usize>,
+    size: Vec<usize>,
+}
+
+impl UnionFind {
+    fn new(n: usize) -> Self {
+        UnionFind {
+            parent: (0..n).collect(),
+            size: vec![1; n],
+        }
+    }
+
+    fn find(&mut self, mut x: usize) -> usize {
+        while self.parent[x] != x {
+            self.parent[x] = self.parent[self.parent[x]];
+            x = self.parent[x];
+        }
+        x
+    }
+
+    /// Joins the sets of `a` and `b`; false when they already were one.
+    fn union(&mut self, a: usize, b: usize) -> bool {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra == rb {
+            return false;
+        }
+        let (big, small) = if self.size[ra] >= self.size[rb] {
+            (ra, rb)
+        } else {
+            (rb, ra)
+        };
+        self.parent[small] = big;
+        self.size[big] += self.size[small];
+        true
+    }
+}
+
+/// Polygon breaking: the maximum spanning forest of `segments` under [`segment_order`] (Kruskal),
+/// as sorted `(a, b)` pairs. `n` is the number of cells.
+pub fn break_polygons(n: usize, segments: &[(f64, usize, usize)]) -> Vec<(usize, usize)> {
+    let mut order: Vec<&(f64, usize, usize)> = segments
+        .iter()
+        .filter(|s| s.1 < n && s.2 < n && s.1 != s.2)
+        .collect();
+    order.sort_unstable_by(|a, b| segment_order(a, b));
+    let mut uf = UnionFind::new(n);
+    let mut kept: Vec<(usize, usize)> = order
+        .into_iter()
+        .filter(|s| uf.union(s.1, s.2))
+        .map(|s| (s.1.min(s.2), s.1.max(s.2)))
+        .collect();
+    kept.sort_unstable();
+    kept
+}
+
+/// Adjacency lists of a forest on `n` cells, each sorted.
+fn adjacency(n: usize, edges: &[(usize, usize)]) -> Vec<Vec<usize>> {
+    let mut adj = vec![Vec::new(); n];
+    for &(a, b) in edges {
+        adj[a].push(b);
+        adj[b].push(a);
+    }
+    for l in &mut adj {
+        l.sort_unstable();
+    }
+    adj
+}
+
+/// Branch reduction: passes that remove every end branch shorter than `min_branch` cells (the
+/// cells from an end point up to, not including, the first branch point) and every tree with
+/// fewer than `min_branch` cells, until a pass removes nothing. Each pass decides from the
+/// forest as it was at the start of the pass, so the result does not depend on visiting order.
+pub fn reduce_branches(
+    n: usize,
+    edges: &[(usize, usize)],
+    min_branch: usize,
+) -> Vec<(usize, usize)> {
+    let mut kept: BTreeSet<(usize, usize)> = edges.iter().copied().collect();
+    if min_branch == 0 {
+        return kept.into_iter().collect();
+    }
+    loop {
+        let current: Vec<(usize, usize)> = kept.iter().copied().collect();
+        let adj = adjacency(n, &current);
+        let mut remove: BTreeSet<(usize, usize)> = BTreeSet::new();
+        let mut visited_path = vec![false; n];
+        for start in 0..n {
+            if adj[start].len() != 1 || visited_path[start] {
+                continue;
+            }
+            // Walk from the end point through degree-2 cells.
+            let mut walk = vec![start];
+            let mut prev = start;
+            let mut cur = adj[start][0];
+            let mut walked: Vec<(usize, usize)> = vec![(start.min(cur), start.max(cur))];
+            while adj[cur].len() == 2 {
+                walk.push(cur);
+                let next = if adj[cur][0] == prev {
+                    adj[cur][1]
+                } else {
+                    adj[cur][0]
+                };
+                prev = cur;
+                cur = next;
+                walked.push((prev.min(cur), prev.max(cur)));
+            }
+            if adj[cur].len() == 1 {
+                // A bare path: both ends are end points; remove it when short.
+                visited_path[cur] = true;
+                walk.push(cur);
+                if walk.len() < min_branch {
+                    remove.extend(walked);
+                }
+            } else if walk.len() < min_branch {
+                // An end branch hanging from the branch point `cur`.
+                remove.extend(walked);
+            }
+        }
+        if remove.is_empty() {
+            break;
+        }
+        for e in &remove {
+            kept.remove(e);
+        }
+    }
+    kept.into_iter().collect()
+}
+
+/// The paths of a forest: from every key node (degree ≠ 2) along each of its edges to the next
+/// key node. Each path is listed once, from its smaller end to its larger (by cell index), and
+/// the list is sorted by (first cell, second cell).
+pub fn paths(n: usize, edges: &[(usize, usize)], z: &[f32]) -> Vec<FeaturePath> {
+    let adj = adjacency(n, edges);
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for start in 0..n {
+        let d = adj[start].len();
+        if d == 0 || d == 2 {
+            continue;
+        }
+        for &first in &adj[start] {
+            let mut cells = vec![start];
+            let mut prev = start;
+            let mut cur = first;
+            while adj[cur].len() == 2 {
+                cells.push(cur);
+                let next = if adj[cur][0] == prev {
+                    adj[cur][1]
+                } else {
+                    adj[cur][0]
+                };
+                prev = cur;
+                cur = next;
+            }
+            cells.push(cur);
+            // Listed from the smaller end (each path is found from both ends; a forest has no
+            // path from a node back to itself).
+            if start < cur {
+                out.push(cells);
+            }
+        }
+    }
+    out.sort();
+    out.into_iter()
+        .map(|cells| {
+            let sum: f64 = cells
+                .iter()
+                .map(|&i| z.get(i).map_or(0.0, |&v| f64::from(v)))
+                .sum();
+            let mean_elevation = sum / cells.len().max(1) as f64;
+            FeaturePath {
+                cells,
+                mean_elevation,
+            }
+        })
+        .collect()
+}
+
+/// The PPA feature tree of `kind` on `z`.
+pub fn feature_tree(z: &Array2<f32>, kind: FeatureKind, params: &PpaParams) -> FeatureTree {
+    let (rows, cols) = z.dim();
+    let n = rows * cols;
+    let o = oriented(z, kind);
+    let cand = candidates(&o, rows, cols, params);
+    let segs = segments(&o, rows, cols, &cand);
+    let forest = break_polygons(n, &segs);
+    let edges = reduce_branches(n, &forest, params.min_branch);
+    let plain = values(z);
+    let paths = paths(n, &edges, &plain);
+    FeatureTree {
+        kind,
+        rows,
+        cols,
+        edges,
+        paths,
+    }
+}
+
+/// Ridges and valleys of `z`.
+pub fn features(z: &Array2<f32>, params: &PpaParams) -> Features {
+    Features {
+        ridges: feature_tree(z, FeatureKind::Ridge, params),
+        valleys: feature_tree(z, FeatureKind::Valley, params),
+    }
+}
+
+/// How well extracted features agree with D8 drainage (see [`drainage_agreement`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct DrainageAgreement {
+    /// D8 channel cells (upstream area ≥ the threshold), border cells excluded.
+    pub channel_cells: usize,
+    /// Share (0–1) of those within `radius` cells (Chebyshev) of a valley cell.
+    pub channels_near_valleys: f64,
+    /// Ridge cells tested (those with a well-defined cross direction, border excluded).
+    pub ridge_cells: usize,
+    /// Share (0–1) of ridge cells whose two sides (the cells `radius` away across the ridge)
+    /// drain to different D8 basins.
+    pub ridges_separating_basins: f64,
+    /// Share (0–1) of ridge cells that are D8 channel cells (flow crossing a ridge).
+    pub ridges_on_channels: f64,
+}
+
+/// The D8 basin of every cell: the channel *link* (stretch of channel between a source or
+/// confluence and the next confluence) its flow first enters, or, for flow leaving the grid
+/// before reaching a channel, its outlet cell. Returned as a label per cell.
+fn basin_labels(rcv: &[usize], channel: &[bool]) -> Vec<usize> {
+    let n = rcv.len();
+    // A channel cell starts a new link when it is a source or a confluence (≥ 2 channel inflows).
+    let mut inflow = vec![0u8; n];
+    for i in 0..n {
+        if channel[i] && rcv[i] != usize::MAX && channel[rcv[i]] {
+            inflow[rcv[i]] = inflow[rcv[i]].saturating_add(1);
+        }
+    }
+    const UNSET: usize = usize::MAX;
+    let mut label = vec![UNSET; n];
+    // Channel cells: follow each link head down to the next confluence.
+    for i in 0..n {
+        if !channel[i] || inflow[i] == 1 {
+            continue;
+        }
+        // i heads a link: a source (no channel inflow) or a confluence.
+        let mut j = i;
+        loop {
+            label[j] = i;
+            let k = rcv[j];
+            if k == usize::MAX || !channel[k] || inflow[k] != 1 {
+                break;
+            }
+            j = k;
+        }
+    }
+    // Other cells: the label of the first labelled cell downstream, or the outlet.
+    let mut stack = Vec::new();
+    for i in 0..n {
+        let mut j = i;
+        while label[j] == UNSET {
+            stack.push(j);
+            if rcv[j] == usize::MAX {
+                label[j] = j;
+                stack.pop();
+                break;
+            }
+            j = rcv[j];
+        }
+        let l = label[j];
+        for s in stack.drain(..) {
+            label[s] = l;
+        }
+    }
+    label
+}
+
+/// Measures the acceptance figures on `z`: priority-flood fill, D8 receivers and upstream
+/// area; channel cells are those draining at least `area_m2`; basins are the catchments of the
+/// channel links. Valleys should cover the channels (`channels_near_valleys`), ridges should
+/// separate basins (`ridges_separating_basins`) and not carry channels (`ridges_on_channels`).
+/// `radius` is in cells (2 in the acceptance).
+pub fn drainage_agreement(
+    z: &Array2<f32>,
+    cells: &CellSizes,
+    features: &Features,
+    area_m2: f64,
+    radius: usize,
+) -> DrainageAgreement {
+    let (rows, cols) = z.dim();
+    let n = rows * cols;
+    let filled = priority_flood_fill(z);
+    let codes = d8_receivers(&filled, cells);
+    let area = flow_accumulation_from_receivers(&codes, cells);
+    let code = values_u8(&codes);
+    let rcv: Vec<usize> = (0..n)
+        .map(|i| {
+            let d = code[i];
+            if d == D8_NONE || d >= 8 {
+                return usize::MAX;
+            }
+            let (dr, dc) = D8_OFFSETS[d as usize];
+            let (r, c) = (i / cols, i % cols);
+            match (r.checked_add_signed(dr), c.checked_add_signed(dc)) {
+                (Some(nr), Some(nc)) if nr < rows && nc < cols => nr * cols + nc,
+                _ => usize::MAX,
+            }
+        })
+        .collect();
+    let area_v: Vec<f64> = area.iter().copied().collect();
+    let channel: Vec<bool> = area_v.iter().map(|&a| a >= area_m2).collect();
+    let inner = |i: usize| {
+        let (r, c) = (i / cols, i % cols);
+        r > 0 && c > 0 && r + 1 < rows && c + 1 < cols
+    };
+    // Channels near valleys: a dilation of the valley mask by `radius` (Chebyshev).
+    let valley = features.valleys.mask();
+    let near = dilate(&valley, radius);
+    let (mut ch, mut ch_near) = (0usize, 0usize);
+    for i in 0..n {
+        if channel[i] && inner(i) {
+            ch += 1;
+            if near[i] {
+                ch_near += 1;
+            }
+        }
+    }
+    // Ridges: cross direction from the ridge's own neighbours.
+    let labels = basin_labels(&rcv, &channel);
+    let adj = adjacency(n, &features.ridges.edges);
+    let (mut tested, mut separating, mut on_channel) = (0usize, 0usize, 0usize);
+    let r_i = radius.max(1) as isize;
+    for i in 0..n {
+        if adj[i].is_empty() || !inner(i) {
+            continue;
+        }
+        // Local direction: from the first to the last neighbour (or to the one neighbour).
+        let (r, c) = ((i / cols) as isize, (i % cols) as isize);
+        let pos = |j: usize| ((j / cols) as isize, (j % cols) as isize);
+        let (ar, ac) = pos(adj[i][0]);
+        let (br, bc) = if adj[i].len() >= 2 {
+            pos(adj[i][adj[i].len() - 1])
+        } else {
+            (r, c)
+        };
+        let (tr, tc) = (ar - br, ac - bc);
+        if tr == 0 && tc == 0 {
+            continue;
+        }
+        // The normal, rounded to a grid step, scaled to the radius.
+        let (nr, nc) = (tc.signum(), -tr.signum());
+        let side = |s: isize| {
+            let (rr, cc) = (r + s * nr * r_i, c + s * nc * r_i);
+            (rr >= 0 && cc >= 0 && (rr as usize) < rows && (cc as usize) < cols)
+                .then(|| rr as usize * cols + cc as usize)
+        };
+        let (Some(p), Some(q)) = (side(1), side(-1)) else {
+            continue;
+        };
+        tested += 1;
+        if labels[p] != labels[q] {
+            separating += 1;
+        }
+        if channel[i] {
+            on_channel += 1;
+        }
+    }
+    let share = |a: usize, b: usize| if b == 0 { 0.0 } else { a as f64 / b as f64 };
+    DrainageAgreement {
+        channel_cells: ch,
+        channels_near_valleys: share(ch_near, ch),
+        ridge_cells: tested,
+        ridges_separating_basins: share(separating, tested),
+        ridges_on_channels: share(on_channel, tested),
+    }
+}
+
+fn values_u8(a: &Array2<u8>) -> Vec<u8> {
+    a.iter().copied().collect()
+}
+
+/// `mask` dilated by `radius` cells in the Chebyshev metric (a square structuring element),
+/// separably: rows then columns.
+pub fn dilate(mask: &Array2<bool>, radius: usize) -> Vec<bool> {
+    let (rows, cols) = mask.dim();
+    let m: Vec<bool> = mask.iter().copied().collect();
+    if radius == 0 {
+        return m;
+    }
+    let mut h = vec![false; rows * cols];
+    for r in 0..rows {
+        // Distance to the last set cell on the left and the next on the right.
+        let row = &m[r * cols..(r + 1) * cols];
+        let mut last: Option<usize> = None;
+        for c in 0..cols {
+            if row[c] {
+                last = Some(c);
+            }
+            if last.is_some_and(|l| c - l <= radius) {
+                h[r * cols + c] = true;
+            }
+        }
+        let mut next: Option<usize> = None;
+        for c in (0..cols).rev() {
+            if row[c] {
+                next = Some(c);
+            }
+            if next.is_some_and(|l| l - c <= radius) {
+                h[r * cols + c] = true;
+            }
+        }
+    }
+    let mut out = vec![false; rows * cols];
+    for c in 0..cols {
+        let mut last: Option<usize> = None;
+        for r in 0..rows {
+            if h[r * cols + c] {
+                last = Some(r);
+            }
+            if last.is_some_and(|l| r - l <= radius) {
+                out[r * cols + c] = true;
+            }
+        }
+        let mut next: Option<usize> = None;
+        for r in (0..rows).rev() {
+            if h[r * cols + c] {
+                next = Some(r);
+            }
+            if next.is_some_and(|l| l - r <= radius) {
+                out[r * cols + c] = true;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn forward_window_min_matches_scan() {
+        let v: Vec<f32> = (0..23).map(|i| ((i * 7) % 11) as f32).collect();
+        for w in 1..9 {
+            let fast = forward_window_min(&v, w);
+            for i in 0..v.len() {
+                let want = v[(i + 1).min(v.len())..(i + 1 + w).min(v.len())]
+                    .iter()
+                    .fold(f32::INFINITY, |m, &a| m.min(a));
+                assert_eq!(fast[i], want, "w {w} i {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_tent_has_one_ridge_line() {
+        // A roof whose crest runs along row 5.
+        let z = Array2::from_shape_fn((11, 20), |(r, c)| {
+            100.0 - 10.0 * (r as f32 - 5.0).abs() + 0.01 * c as f32
+        });
+        let t = feature_tree(&z, FeatureKind::Ridge, &PpaParams::default());
+        assert_eq!(t.paths.len(), 1, "{:?}", t.paths);
+        let rows: BTreeSet<usize> = t.paths[0].cells.iter().map(|&i| i / 20).collect();
+        assert_eq!(rows, BTreeSet::from([5]));
+        let v = feature_tree(&z, FeatureKind::Valley, &PpaParams::default());
+        assert!(v.edges.is_empty(), "a roof has no valley: {:?}", v.paths);
+    }
+}

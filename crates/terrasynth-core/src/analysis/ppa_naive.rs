@@ -1,0 +1,117 @@
+//! Straightforward references for the optimised steps of the PPA ([`super::ppa`]): profile
+//! recognition by scanning every side of every profile cell by cell, and polygon breaking by
+//! finding one closed polygon at a time (a depth-first search) and removing its lowest segment.
+//! Slow (quadratic or worse); meant for property tests on small grids.
+
+use super::ppa::{segment_order, PpaParams, PROFILE_DIRECTIONS};
+
+/// Profile recognition cell by cell: for each cell and direction, the minimum of each side's
+/// `window` cells (NaN never lower) is compared with the cell.
+pub fn candidates(z: &[f32], rows: usize, cols: usize, params: &PpaParams) -> Vec<bool> {
+    let mut out = vec![false; rows * cols];
+    if z.len() != rows * cols || params.window == 0 {
+        return out;
+    }
+    let drop = params.min_drop.max(0.0);
+    let at = |r: isize, c: isize| -> Option<f32> {
+        if r < 0 || c < 0 || r >= rows as isize || c >= cols as isize {
+            None
+        } else {
+            Some(z[r as usize * cols + c as usize])
+        }
+    };
+    for r in 0..rows as isize {
+        for c in 0..cols as isize {
+            let Some(h) = at(r, c) else { continue };
+            for &(dr, dc) in &PROFILE_DIRECTIONS {
+                let side = |sign: isize| {
+                    (1..=params.window as isize).any(|k| {
+                        at(r + sign * k * dr, c + sign * k * dc)
+                            .is_some_and(|v| !v.is_nan() && h - v > drop)
+                    })
+                };
+                if side(1) && side(-1) {
+                    out[r as usize * cols + c as usize] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// One closed polygon of the graph `edges` (indices into `edges`), if any.
+fn find_cycle(n: usize, edges: &[(usize, usize)]) -> Option<Vec<usize>> {
+    let mut adj: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+    for (k, &(a, b)) in edges.iter().enumerate() {
+        adj[a].push((b, k));
+        adj[b].push((a, k));
+    }
+    let mut depth = vec![usize::MAX; n];
+    let mut parent_edge = vec![usize::MAX; n];
+    let mut parent = vec![usize::MAX; n];
+    for root in 0..n {
+        if depth[root] != usize::MAX {
+            continue;
+        }
+        depth[root] = 0;
+        let mut stack = vec![root];
+        while let Some(u) = stack.pop() {
+            for &(v, k) in &adj[u] {
+                if k == parent_edge[u] {
+                    continue;
+                }
+                if depth[v] == usize::MAX {
+                    depth[v] = depth[u] + 1;
+                    parent[v] = u;
+                    parent_edge[v] = k;
+                    stack.push(v);
+                } else {
+                    // A non-tree edge closes a polygon: climb both ends to their meeting point.
+                    let mut cycle = vec![k];
+                    let (mut x, mut y) = (u, v);
+                    while x != y {
+                        if depth[x] >= depth[y] {
+                            cycle.push(parent_edge[x]);
+                            x = parent[x];
+                        } else {
+                            cycle.push(parent_edge[y]);
+                            y = parent[y];
+                        }
+                    }
+                    return Some(cycle);
+                }
+            }
+        }
+    }
+    None
+}
+
+/// Polygon breaking one polygon at a time: while the graph has a closed polygon, its lowest
+/// segment (the last under [`segment_order`]) is removed. Returns the sorted `(a, b)` pairs left.
+pub fn break_polygons(n: usize, segments: &[(f64, usize, usize)]) -> Vec<(usize, usize)> {
+    let mut segs: Vec<(f64, usize, usize)> = segments
+        .iter()
+        .filter(|s| s.1 < n && s.2 < n && s.1 != s.2)
+        .map(|s| (s.0, s.1.min(s.2), s.1.max(s.2)))
+        .collect();
+    loop {
+        let edges: Vec<(usize, usize)> = segs.iter().map(|s| (s.1, s.2)).collect();
+        let Some(cycle) = find_cycle(n, &edges) else {
+            break;
+        };
+        // The lowest segment is the last one under the order (heavier segments come first).
+        let lowest = cycle
+            .iter()
+            .copied()
+            .max_by(|&a, &b| segment_order(&segs[a], &segs[b]));
+        match lowest {
+            Some(k) => {
+                segs.remove(k);
+            }
+            None => break,
+        }
+    }
+    let mut out: Vec<(usize, usize)> = segs.iter().map(|s| (s.1, s.2)).collect();
+    out.sort_unstable();
+    out
+}

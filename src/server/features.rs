@@ -1,0 +1,116 @@
+//! `GET /worlds/{world}/features.geojson`: the ridges and valleys of a world's base (PPA,
+//! computed once per world by [`terrasynth_tiles::World::features`]) as a GeoJSON
+//! `FeatureCollection` of `LineString`s in longitude/latitude with `kind` and
+//! `mean_elevation_m`. The computation runs on the blocking pool behind the synthesis
+//! semaphore; the answer carries a strong ETag derived from the world's fingerprint.
+
+use std::collections::HashMap;
+
+use axum::body::Body;
+use axum::extract::{Path, Query, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+
+use terrasynth_core::analysis::ppa::FeatureTree;
+use terrasynth_core::synth::sketch::geojson::features_geojson;
+
+use super::error::{Problem, ServerError};
+use super::state::AppState;
+
+/// Which trees a request asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kinds {
+    Ridge,
+    Valley,
+    All,
+}
+
+impl Kinds {
+    fn parse(q: Option<&String>) -> Result<Kinds, ServerError> {
+        match q.map(String::as_str) {
+            None | Some("all") => Ok(Kinds::All),
+            Some("ridge") => Ok(Kinds::Ridge),
+            Some("valley") => Ok(Kinds::Valley),
+            Some(other) => Err(ServerError::BadRequest(format!(
+                "kind `{other}` must be ridge, valley or all"
+            ))),
+        }
+    }
+
+    fn as_str(self) -> &'static str {
+        match self {
+            Kinds::Ridge => "ridge",
+            Kinds::Valley => "valley",
+            Kinds::All => "all",
+        }
+    }
+}
+
+/// Ridges and valleys of a world's base.
+#[utoipa::path(get, path = "/worlds/{world}/features.geojson", tag = "meta",
+    params(
+        ("world" = String, Path, description = "World name"),
+        ("kind" = Option<String>, Query, description = "`ridge`, `valley` or `all` (default)")
+    ),
+    responses(
+        (status = 200, description = "GeoJSON FeatureCollection of LineStrings (lon/lat) with properties `kind`, `mean_elevation_m`, `cells`, `start`, `end`", body = Object, content_type = "application/geo+json"),
+        (status = 304, description = "Not modified (`If-None-Match`)"),
+        (status = 400, description = "Bad `kind`", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
+    ))]
+pub async fn features(
+    State(state): State<AppState>,
+    Path(name): Path<String>,
+    Query(query): Query<HashMap<String, String>>,
+    headers: HeaderMap,
+) -> Result<Response, ServerError> {
+    let world = state.world(&name)?;
+    let kinds = Kinds::parse(query.get("kind"))?;
+    let fp = world.fingerprint();
+    let tag = format!(
+        "\"features-{}-{}\"",
+        &fp[..fp.len().min(32)],
+        kinds.as_str()
+    );
+    let tag_value =
+        HeaderValue::from_str(&tag).map_err(|e| ServerError::Internal(e.to_string()))?;
+    let matches = headers
+        .get(header::IF_NONE_MATCH)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(',').any(|t| t.trim() == tag || t.trim() == "*"));
+    if matches {
+        let mut resp = StatusCode::NOT_MODIFIED.into_response();
+        resp.headers_mut().insert(header::ETAG, tag_value);
+        return Ok(resp);
+    }
+    let permit = state
+        .synth
+        .clone()
+        .acquire_owned()
+        .await
+        .map_err(|e| ServerError::Internal(e.to_string()))?;
+    let bytes = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        let f = world.features()?;
+        let mut trees: Vec<&FeatureTree> = Vec::new();
+        if kinds != Kinds::Valley {
+            trees.push(&f.ridges);
+        }
+        if kinds != Kinds::Ridge {
+            trees.push(&f.valleys);
+        }
+        let json = features_geojson(&trees, &world.base_georef());
+        serde_json::to_vec(&json).map_err(|e| ServerError::Internal(e.to_string()))
+    })
+    .await
+    .map_err(|e| ServerError::Internal(e.to_string()))??;
+    let mut resp = (StatusCode::OK, Body::from(bytes)).into_response();
+    let h = resp.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/geo+json"),
+    );
+    h.insert(header::ETAG, tag_value);
+    h.insert(header::CACHE_CONTROL, state.cache_control.clone());
+    Ok(resp)
+}
