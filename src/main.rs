@@ -167,6 +167,10 @@ struct AmplifyCli {
     /// Amplifier levers for ablations (see `synth::Levers::parse`; default: the served amplifier).
     #[arg(long, hide = true, value_parser = terrasynth_core::synth::Levers::parse)]
     levers: Option<terrasynth_core::synth::Levers>,
+    /// Atoms per primitive: the matcher's atom plus OMP on the rest of the parent patch
+    /// (1–8; default: the dictionary's own sparsity, 1 unless it was learned for more).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
+    sparsity: Option<u32>,
 }
 
 #[derive(Args)]
@@ -374,7 +378,13 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 levels: a.levels,
                 output: a.output,
                 weights: a.weights.unwrap_or_default(),
-                levers: a.levers.unwrap_or_default(),
+                levers: {
+                    let mut l = a.levers.unwrap_or_default();
+                    if let Some(s) = a.sparsity {
+                        l.sparsity = s;
+                    }
+                    l
+                },
             })?;
             println!(
                 "amplified to {}×{} in {:.2} s: {}",

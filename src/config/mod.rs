@@ -218,6 +218,9 @@ pub struct WorldConfig {
     /// Where map clients open, `[lon, lat]` (default: over the base's highest-relief region).
     #[serde(default)]
     pub center: Option<[f64; 2]>,
+    /// Atoms per primitive of the amplifier, 1–8 (default: the dictionary's own sparsity).
+    #[serde(default)]
+    pub sparsity: Option<u32>,
     /// Dictionary build settings.
     #[serde(default)]
     pub dictionary: DictionaryConfig,

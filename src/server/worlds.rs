@@ -194,6 +194,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
             cache_bytes: config.server.level_cache_bytes(config.worlds.len()),
             landscape: wc.landscape.clone(),
             center: wc.center,
+            sparsity: wc.sparsity,
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
@@ -210,6 +211,7 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         title: def.title.clone().unwrap_or_else(|| def.name.clone()),
         attribution: def.attribution.clone().unwrap_or_default(),
         center: def.center,
+        sparsity: None,
         base: resolved.base,
         z_base: None,
         max_zoom: def.max_zoom,

@@ -156,6 +156,7 @@ pub fn mini_world(
         cache_bytes,
         landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
         center: None,
+        sparsity: None,
     })
     .expect("a valid mini world")
 }

@@ -14,7 +14,7 @@ use terrasynth_core::analysis::ppa::{self, Features, PpaParams};
 use terrasynth_core::dictionary::{Dictionary, MatchWeights};
 use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_core::raster::{CellSizes, Georef, Grid};
-use terrasynth_core::synth::{Amplifier, Window};
+use terrasynth_core::synth::{Amplifier, Levers, Window};
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
 use crate::drainage::DrainageLevels;
@@ -55,6 +55,8 @@ pub struct WorldParts {
     /// Where map clients open, `[lon, lat]`; `None`: over the base's highest-relief region
     /// ([`relief_center`]).
     pub center: Option<[f64; 2]>,
+    /// Atoms per primitive of the amplifier ([`Levers::sparsity`]); `None`: the dictionary's.
+    pub sparsity: Option<u32>,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -112,6 +114,10 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
         parts.weights
     ));
     h.update(format!("{:?}|", parts.landscape));
+    if let Some(s) = parts.sparsity {
+        // Absent before sparse codes: worlds without the setting keep their fingerprint.
+        h.update(format!("sparsity={s}|"));
+    }
     for v in parts.base.data.iter() {
         h.update(v.to_bits().to_le_bytes());
     }
@@ -123,8 +129,15 @@ impl World {
     pub fn new(parts: WorldParts) -> Result<World, TileError> {
         let extent = Extent::of_base(&parts.base, parts.z_base, parts.max_zoom)?;
         parts.landscape.validate()?;
-        let amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?.without_layers();
+        let levers = Levers {
+            sparsity: parts.sparsity.unwrap_or(0),
+            ..Levers::default()
+        };
+        let amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?
+            .with_levers(levers)
+            .without_layers();
         let layer_amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?
+            .with_levers(levers)
             .with_only_layers(&parts.landscape.species_names());
         let fingerprint = fingerprint(&parts, extent.z_base);
         // The whole-world landscape layers come out of the same budget; the level caches keep

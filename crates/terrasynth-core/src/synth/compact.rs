@@ -55,19 +55,7 @@ pub struct CompactTerrain {
 /// (`step × step`), exactly as the amplifier computes them.
 pub fn blend_weights(patch: usize) -> (Vec<f32>, Vec<f32>) {
     let step = patch / 2;
-    let radius = step as f32;
-    let mut alpha = vec![0.0f32; patch * patch];
-    for r in 0..patch {
-        for c in 0..patch {
-            let dy = (r as f32 + 0.5 - radius) / radius;
-            let dx = (c as f32 + 0.5 - radius) / radius;
-            let r2 = dx * dx + dy * dy;
-            if r2 < 1.0 {
-                let t = 1.0 - r2;
-                alpha[r * patch + c] = t * t * t;
-            }
-        }
-    }
+    let alpha = super::level::blend_alpha(patch);
     let mut inv_norm = vec![0.0f32; step * step];
     for oy in 0..step {
         for ox in 0..step {

@@ -34,10 +34,11 @@ use super::kernel::{
     consistent_upsample_patch, finest_octave_rms, floor_div, upsample_patch, OctaveScratch,
     UpKernel, CATMULL_ROM,
 };
-pub use super::levers::Levers;
+pub use super::levers::{Levers, MAX_AMPLIFY_SPARSITY};
 use crate::analysis::breach::{breach_margin, breach_pits};
 use crate::dictionary::features::{centre_normalise, patch_mean_slope};
 use crate::dictionary::matching::{unit_centred, MatchScratch, MatchWeights, Matcher, Query};
+use crate::dictionary::omp::{Omp, OmpScratch};
 use crate::dictionary::{Dictionary, LayerKind};
 use crate::raster::boxfilter::box2;
 
@@ -55,6 +56,11 @@ struct Primitive {
     detail_coef: f32,
     /// `1 / mean slope` of the parent patch (0 when flat), for [`Levers::slope_mod`].
     inv_slope: f32,
+    /// Further atoms of the sparse code ([`Levers::sparsity`] > 1): `(atom, smooth amplitude,
+    /// detail amplitude)`, the first `n_extra` entries.
+    extra: [(u32, f32, f32); MAX_AMPLIFY_SPARSITY - 1],
+    /// Number of entries of `extra` in use.
+    n_extra: u8,
 }
 
 /// What [`Amplifier::blend`] reconstructs.
@@ -116,6 +122,30 @@ pub struct Amplifier {
     with_layers: bool,
     /// Per dictionary layer: whether it is reconstructed (when `with_layers`).
     layer_mask: Vec<bool>,
+    /// Atoms per primitive, resolved from [`Levers::sparsity`] and the dictionary.
+    sparsity: usize,
+    /// The pursuit over the low atoms, when `sparsity > 1`.
+    omp: Option<Arc<Omp>>,
+}
+
+/// The blending weights `α = (1 − r²)³`, `r = |p − c| / step`, of a primitive over its
+/// `patch × patch` square (`c` its centre, `step = patch/2`); 0 outside the disc. Compact
+/// terrains ([`super::compact`]) blend with the same weights.
+pub fn blend_alpha(patch: usize) -> Vec<f32> {
+    let radius = (patch / 2) as f32;
+    let mut alpha = vec![0.0f32; patch * patch];
+    for r in 0..patch {
+        for c in 0..patch {
+            let dy = (r as f32 + 0.5 - radius) / radius;
+            let dx = (c as f32 + 0.5 - radius) / radius;
+            let r2 = dx * dx + dy * dy;
+            if r2 < 1.0 {
+                let t = 1.0 - r2;
+                alpha[r * patch + c] = t * t * t;
+            }
+        }
+    }
+    alpha
 }
 
 impl Amplifier {
@@ -141,6 +171,8 @@ impl Amplifier {
             inv_norm: Vec::new(),
             levers: Levers::default(),
             kernel: CATMULL_ROM,
+            sparsity: 1,
+            omp: None,
         };
         amp.configure();
         Ok(amp)
@@ -165,19 +197,7 @@ impl Amplifier {
         let dict = self.dict.clone();
         let power = self.levers.blend_power.max(1) as i32;
         self.kernel = UpKernel::new(self.levers.kernel);
-        let radius = step as f32;
-        let mut alpha = vec![0.0f32; patch * patch];
-        for r in 0..patch {
-            for c in 0..patch {
-                let dy = (r as f32 + 0.5 - radius) / radius;
-                let dx = (c as f32 + 0.5 - radius) / radius;
-                let r2 = dx * dx + dy * dy;
-                if r2 < 1.0 {
-                    let t = 1.0 - r2;
-                    alpha[r * patch + c] = t * t * t;
-                }
-            }
-        }
+        let alpha = blend_alpha(patch);
         let walpha: Vec<f32> = alpha.iter().map(|a| a.powi(power)).collect();
         // A pixel at offset (oy, ox) of a lattice cell is covered by the four primitives that see
         // it at patch offsets {oy, oy+step} × {ox, ox+step}; sum them in lattice order.
@@ -222,6 +242,19 @@ impl Amplifier {
                 (ss / p2.max(1) as f64).sqrt() as f32
             })
             .collect();
+        self.sparsity = match self.levers.sparsity {
+            0 => dict.params.sparsity,
+            s => s as usize,
+        }
+        .clamp(1, MAX_AMPLIFY_SPARSITY);
+        self.omp = match (self.sparsity > 1, &self.omp) {
+            (false, _) => None,
+            (true, Some(omp)) => Some(omp.clone()),
+            (true, None) => {
+                let lo2 = (patch / 2) * (patch / 2);
+                Some(Arc::new(Omp::new(&dict.lo_elev[..dict.n_atoms * lo2], lo2)))
+            }
+        };
         self.alpha = alpha;
         self.walpha = walpha;
         self.inv_norm = inv_norm;
@@ -377,13 +410,13 @@ impl Amplifier {
             .map_init(
                 || {
                     (
-                        MatchScratch::default(),
+                        (MatchScratch::default(), OmpScratch::default()),
                         vec![0.0f32; lo * lo],
                         Query::default(),
                         OctaveScratch::default(),
                     )
                 },
-                |(scratch, raw, query, octave), n| {
+                |((scratch, omp_scratch), raw, query, octave), n| {
                     let i = lr.i0 + (n % ni) as i64;
                     let j = lr.j0 + (n / ni) as i64;
                     let pc0 = (i * s / 2 - q - pw.col0) as usize;
@@ -426,7 +459,7 @@ impl Amplifier {
                     } else {
                         norm
                     };
-                    Primitive {
+                    let mut prim = Primitive {
                         atom,
                         coef: dot * norm,
                         mean,
@@ -436,7 +469,24 @@ impl Amplifier {
                         } else {
                             0.0
                         },
+                        extra: [(0, 0.0, 0.0); MAX_AMPLIFY_SPARSITY - 1],
+                        n_extra: 0,
+                    };
+                    if let Some(omp) = &self.omp {
+                        // The matcher's atom first, then the pursuit; least-squares
+                        // coefficients of the low patch for all of them. Each further atom's
+                        // detail comes in the proportion of its coefficient.
+                        let code =
+                            omp.code_from(&query.elevation, Some(atom), self.sparsity, omp_scratch);
+                        if let Some(&(_, x0)) = code.first() {
+                            prim.coef = x0 as f32 * norm;
+                        }
+                        for (slot, &(a, x)) in prim.extra.iter_mut().zip(code.iter().skip(1)) {
+                            *slot = (a as u32, x as f32 * norm, x as f32 * detail_coef);
+                            prim.n_extra += 1;
+                        }
                     }
+                    prim
                 },
             )
             .collect()
@@ -513,6 +563,33 @@ impl Amplifier {
                                     None => {
                                         for k in 0..len {
                                             det[k] += wa[k] * (prim.detail_coef * dt[k]);
+                                        }
+                                    }
+                                }
+                                // The sparse code's further atoms (none at sparsity 1).
+                                for &(ea, ec, ed) in &prim.extra[..usize::from(prim.n_extra)] {
+                                    let eb = ea as usize * p2 + oy * p + ox0;
+                                    let sm = &self.smooth[eb..eb + len];
+                                    let dt = &self.detail[eb..eb + len];
+                                    if !parent_smooth {
+                                        for k in 0..len {
+                                            out[k] += a[k] * (ec * sm[k]);
+                                        }
+                                    }
+                                    match slope {
+                                        Some(sl) => {
+                                            let srow = sl.row(r);
+                                            let srow = srow.slice(s![c0..c0 + len]);
+                                            for k in 0..len {
+                                                let m =
+                                                    (srow[k] * prim.inv_slope).min(SLOPE_MOD_MAX);
+                                                det[k] += wa[k] * (ed * dt[k]) * m;
+                                            }
+                                        }
+                                        None => {
+                                            for k in 0..len {
+                                                det[k] += wa[k] * (ed * dt[k]);
+                                            }
                                         }
                                     }
                                 }

@@ -5,6 +5,9 @@
 
 use super::kernel::KernelKind;
 
+/// Largest number of atoms per primitive the amplifier takes ([`Levers::sparsity`]).
+pub const MAX_AMPLIFY_SPARSITY: usize = 8;
+
 /// The switches of one amplification level.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Levers {
@@ -36,6 +39,12 @@ pub struct Levers {
     /// (interpolated to the pixel, at most 3): flat valley floors get little detail, steep slopes
     /// more.
     pub slope_mod: bool,
+    /// Atoms per primitive (the sparse construction tree of Guérin et al.): the matcher's atom
+    /// plus up to `sparsity − 1` more, chosen by Orthogonal Matching Pursuit on what the first
+    /// leaves of the parent patch, with least-squares coefficients for all of them. 0: the
+    /// dictionary's own `sparsity` (1 unless it was learned for more); 1: one atom (the
+    /// amplifier before sparse codes, bit for bit).
+    pub sparsity: u32,
 }
 
 impl Default for Levers {
@@ -51,6 +60,7 @@ impl Default for Levers {
             passes: 2,
             breach: 6,
             slope_mod: false,
+            sparsity: 0,
         }
     }
 }
@@ -69,13 +79,14 @@ impl Levers {
             passes: 4,
             breach: 0,
             slope_mod: false,
+            sparsity: 0,
         }
     }
 
     /// Parses a comma-separated list of changes applied in order to [`Levers::default`]:
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
-    /// `passes=N`, `breach=N`.
+    /// `passes=N`, `breach=N`, `sparsity=S` (0: the dictionary's).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -108,6 +119,7 @@ impl Levers {
                 "rough" => l.roughness = num(0.0, 4.0)? as f32,
                 "passes" => l.passes = num(0.0, 12.0)? as u32,
                 "breach" => l.breach = num(0.0, 32.0)? as u32,
+                "sparsity" => l.sparsity = num(0.0, MAX_AMPLIFY_SPARSITY as f64)? as u32,
                 "kernel" => {
                     l.kernel = match value {
                         Some("cr") => KernelKind::CatmullRom,
@@ -141,5 +153,7 @@ mod tests {
         assert!(Levers::parse("breach=1000").is_err());
         assert!(Levers::parse("kernel=lanczos").is_err());
         assert!(Levers::parse("warp").is_err());
+        assert_eq!(Levers::parse("sparsity=3").unwrap().sparsity, 3);
+        assert!(Levers::parse("sparsity=9").is_err());
     }
 }

@@ -24,3 +24,4 @@ pub use field::{Field, Window};
 pub use kernel::KernelKind;
 pub use level::Amplifier;
 pub use levers::Levers;
+pub use levers::MAX_AMPLIFY_SPARSITY;

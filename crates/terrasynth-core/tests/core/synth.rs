@@ -108,6 +108,14 @@ fn lever_sets() -> Vec<Levers> {
             ..base
         },
         Levers::default(),
+        Levers {
+            sparsity: 3,
+            ..base
+        },
+        Levers {
+            sparsity: 4,
+            ..Levers::default()
+        },
     ]
 }
 
@@ -115,7 +123,7 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 20, .. ProptestConfig::default() })]
 
     #[test]
-    fn every_lever_set_is_window_invariant(which in 0usize..10, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
+    fn every_lever_set_is_window_invariant(which in 0usize..12, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
         let levers = lever_sets()[which];
         let dict = small_dictionary(3);
         let base = synthetic_terrain(72, 72, 5);
@@ -348,4 +356,72 @@ fn parent_window_is_what_amplify_reads() {
         .amplify(&Field::elevation_only(wide_w, wide), out, 100.0)
         .unwrap();
     assert_eq!(a.elevation, b.elevation);
+}
+
+// --- sparse codes in the amplifier (issue #21) ---
+
+/// One level of `base` with `levers`, on a fixed window.
+fn one_level(levers: Levers, base: &Array2<f32>) -> Field {
+    let dict = small_dictionary(6);
+    let src = ClampedRaster {
+        elevation: base,
+        layers: vec![],
+    };
+    let amps = vec![Amplifier::new(dict, &MatchWeights::default())
+        .unwrap()
+        .with_levers(levers)];
+    amplify_chain(&amps, &src, Window::new(0, 0, 128, 128), 100.0).unwrap()
+}
+
+#[test]
+fn sparsity_one_is_the_single_atom_amplifier_and_more_atoms_fit_the_parent_better() {
+    let base = synthetic_terrain(64, 64, 21);
+    // The dictionary's own sparsity (1 for a constrained dictionary) and an explicit 1 are the
+    // same amplifier, bit for bit (the served tiles' hash list, tests/data/
+    // default_world_tiles.sha256, pins that amplifier against the one before sparse codes).
+    let own = one_level(Levers::default(), &base);
+    let explicit = one_level(
+        Levers {
+            sparsity: 1,
+            ..Levers::default()
+        },
+        &base,
+    );
+    assert!(own
+        .elevation
+        .iter()
+        .zip(explicit.elevation.iter())
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    // With more atoms per primitive the blended smooth part (before any residual correction)
+    // reproduces the parent more closely: its 2×2 box averages are nearer the base.
+    let smooth_only = |sparsity: u32| {
+        let f = one_level(
+            Levers {
+                sparsity,
+                passes: 0,
+                breach: 0,
+                roughness: 0.0,
+                ..Levers::baseline()
+            },
+            &base,
+        );
+        rmse(&box2(&f.elevation), &base)
+    };
+    let (e1, e2, e4) = (smooth_only(1), smooth_only(2), smooth_only(4));
+    assert!(
+        e2 < e1 && e4 < e2,
+        "parent fit: s=1 {e1}, s=2 {e2}, s=4 {e4}"
+    );
+    let two = one_level(
+        Levers {
+            sparsity: 2,
+            ..Levers::default()
+        },
+        &base,
+    );
+    assert!(two
+        .elevation
+        .iter()
+        .zip(own.elevation.iter())
+        .any(|(a, b)| a != b));
 }
