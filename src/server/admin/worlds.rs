@@ -15,7 +15,7 @@ use terrasynth_store::{ServiceError, WorldDefinition, WorldRequest};
 use super::extract::json_body;
 use crate::server::error::{Problem, ServerError};
 use crate::server::state::{blocking, AppState};
-use crate::server::worlds::{prepare_landscapes, world_from};
+use crate::server::worlds::{prepare_landscapes, share_shortfall, world_from};
 
 /// `POST /admin/worlds` answer.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -40,7 +40,7 @@ pub struct WorldCreated {
         (status = 409, description = "Name taken", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body too large", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Not JSON", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Unknown base or dictionary, invalid zoom, weights, materials or species", body = Problem, content_type = "application/problem+json")
+        (status = 422, description = "Unknown base or dictionary, invalid zoom, weights, materials or species, or a base too large for a world's share of `cache_mb`", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn post_world(
     State(state): State<AppState>,
@@ -57,8 +57,15 @@ pub async fn post_world(
             &def,
             |name| live.get(name).is_some(),
             |resolved| {
-                world_from(resolved, cache_bytes)
-                    .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))
+                let world = world_from(resolved, cache_bytes)
+                    .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))?;
+                // A world that would overrun its memory share is refused, nothing stored.
+                match share_shortfall(&world) {
+                    Some(why) => Err(ServiceError::Invalid(format!(
+                        "cannot create the world: {why}"
+                    ))),
+                    None => Ok(world),
+                }
             },
         )?;
         let world = Arc::new(world);
