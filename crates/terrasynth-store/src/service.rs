@@ -258,11 +258,7 @@ impl Catalogue {
                 "give 1–{MAX_BUILD_EXEMPLARS} exemplar ids"
             )));
         }
-        if let Some(e) = request
-            .exemplars
-            .iter()
-            .find(|e| !self.ensure_checked(e))
-        {
+        if let Some(e) = request.exemplars.iter().find(|e| !self.ensure_checked(e)) {
             return Err(ServiceError::Invalid(format!("unknown exemplar `{e}`")));
         }
         build_options(&request)?;
