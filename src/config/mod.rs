@@ -180,9 +180,9 @@ impl Default for ServerConfig {
             public_url: String::new(),
             header_read_timeout_s: 10,
             idle_timeout_s: 60,
-            max_connections: 1024,
+            max_connections: 4096,
             max_uri_bytes: 8192,
-            upload_memory_mb: 768,
+            upload_memory_mb: 256,
             max_concurrent_uploads: 2,
             auth_failures_per_minute: 10,
         }
@@ -619,7 +619,7 @@ mod tests {
         .unwrap();
         let env = vec![
             ("TERRASYNTH_IDLE_TIMEOUT_S".to_string(), "30".to_string()),
-            ("TERRASYNTH_UPLOAD_MEMORY_MB".into(), "256".into()),
+            ("TERRASYNTH_UPLOAD_MEMORY_MB".into(), "300".into()),
             ("TERRASYNTH_MAX_CONCURRENT_UPLOADS".into(), "3".into()),
             ("TERRASYNTH_AUTH_FAILURES_PER_MINUTE".into(), "4".into()),
             ("TERRASYNTH_MAX_URI_BYTES".into(), "4096".into()),
@@ -628,7 +628,7 @@ mod tests {
         assert_eq!(c.public_url, "https://tiles.example.com/terrain");
         assert_eq!((c.header_read_timeout_s, c.idle_timeout_s), (5, 30));
         assert_eq!((c.max_connections, c.max_uri_bytes), (64, 4096));
-        assert_eq!((c.upload_memory_mb, c.max_concurrent_uploads), (256, 3));
+        assert_eq!((c.upload_memory_mb, c.max_concurrent_uploads), (300, 3));
         assert_eq!(c.auth_failures_per_minute, 4);
         for (line, key) in [
             ("public_url = \"ftp://x\"", "public_url"),

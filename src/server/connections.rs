@@ -39,6 +39,10 @@ use super::metrics::Metrics;
 /// File descriptors kept free beyond the connection cap (store files, the listener, logs).
 pub const FD_RESERVE: u64 = 128;
 
+/// How many times the accept loop yields at most for an evicted connection to close its socket
+/// (the reserve of [`FD_RESERVE`] descriptors covers one that takes longer).
+const EVICTION_YIELDS: u32 = 64;
+
 /// How often a connection checks its idle time.
 const IDLE_CHECK: Duration = Duration::from_millis(250);
 
@@ -122,6 +126,29 @@ impl Registry {
 
     fn remove(&self, id: u64) {
         self.lock().remove(&id);
+    }
+}
+
+/// Counts a client socket open (`terrasynth_connections_open`) from its accept until it is
+/// dropped.
+struct OpenSocket(Arc<Metrics>);
+
+impl OpenSocket {
+    fn new(metrics: Arc<Metrics>) -> Self {
+        metrics
+            .counters
+            .connections_open
+            .fetch_add(1, Ordering::AcqRel);
+        OpenSocket(metrics)
+    }
+}
+
+impl Drop for OpenSocket {
+    fn drop(&mut self) {
+        self.0
+            .counters
+            .connections_open
+            .fetch_sub(1, Ordering::AcqRel);
     }
 }
 
@@ -245,6 +272,10 @@ pub async fn serve(
             .counters
             .connections_accepted
             .fetch_add(1, Ordering::Relaxed);
+        // Registered now, so that the next accept already counts it; its socket is counted
+        // open until it is actually closed.
+        let socket = OpenSocket::new(metrics.clone());
+        let (id, conn) = registry.insert();
         let task = Connection {
             registry: registry.clone(),
             metrics: metrics.clone(),
@@ -253,7 +284,18 @@ pub async fn serve(
             stop: stop_rx.clone(),
             done: done_rx.clone(),
         };
-        tokio::spawn(task.run(stream, peer));
+        tokio::spawn(task.run(stream, peer, socket, id, conn));
+        // An evicted connection closes its socket on its own task: wait (briefly) until it has,
+        // so that the sockets open never exceed the cap by more than the one just accepted,
+        // however fast clients connect.
+        let mut yields = 0;
+        while metrics.counters.connections_open.load(Ordering::Acquire)
+            > limits.max_connections as u64
+            && yields < EVICTION_YIELDS
+        {
+            tokio::task::yield_now().await;
+            yields += 1;
+        }
     }
     drop(listener);
     let _ = stop_tx.send(true);
@@ -272,13 +314,20 @@ struct Connection {
 }
 
 impl Connection {
-    async fn run(mut self, stream: TcpStream, peer: SocketAddr) {
+    async fn run(
+        mut self,
+        stream: TcpStream,
+        peer: SocketAddr,
+        socket: OpenSocket,
+        id: u64,
+        conn: Arc<Conn>,
+    ) {
+        // Dropped after the connection (declared first, dropped last): the socket is closed then.
+        let _socket = socket;
         // Tiles are written whole: without TCP_NODELAY a tile's last segment can wait on the
         // client's delayed ACK.
         let _ = stream.set_nodelay(true);
-        let (id, conn) = self.registry.insert();
         let counters = &self.metrics.counters;
-        counters.connections_open.fetch_add(1, Ordering::Relaxed);
         let (app, registry, state) = (self.app.clone(), self.registry.clone(), conn.clone());
         let service = hyper::service::service_fn(move |req: hyper::Request<Incoming>| {
             let guard = InFlight::new(state.clone(), registry.clone());
@@ -339,7 +388,6 @@ impl Connection {
             }
         }
         self.registry.remove(id);
-        counters.connections_open.fetch_sub(1, Ordering::Relaxed);
         drop(self.done);
     }
 }
