@@ -188,7 +188,8 @@ async fn spool_multipart(
 #[utoipa::path(get, path = "/admin/exemplars", tag = "admin", security(("bearer" = [])),
     responses(
         (status = 200, description = "Exemplars", body = Vec<ExemplarInfo>),
-        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json")
+        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn list_exemplars(
     State(state): State<AppState>,
@@ -204,6 +205,7 @@ pub async fn list_exemplars(
     responses(
         (status = 200, description = "The exemplar", body = ExemplarInfo),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown exemplar", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn get_exemplar(
@@ -220,6 +222,7 @@ pub async fn get_exemplar(
     responses(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown exemplar", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Used by a build or a world", body = Problem, content_type = "application/problem+json")
     ))]

@@ -37,6 +37,7 @@ pub struct WorldCreated {
         (status = 201, description = "Created; tiles are served at once", body = WorldCreated),
         (status = 400, description = "Malformed JSON", body = Problem, content_type = "application/problem+json"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Name taken", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body too large", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Not JSON", body = Problem, content_type = "application/problem+json"),
@@ -90,6 +91,7 @@ pub async fn post_world(
     responses(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "A configured (read-only) world", body = Problem, content_type = "application/problem+json")
     ))]
