@@ -198,8 +198,16 @@ impl Catalogue {
     /// Verifies exemplar `id` now if the background verification has not reached it yet (an
     /// unverified exemplar is never described or used); `false` when it is absent or corrupted.
     fn ensure_checked(&self, id: &str) -> bool {
-        self.catalog.has_exemplar(id)
+        if self.catalog.has_exemplar(id)
             && check_exemplar(&self.store, &self.catalog, &self.changes, &self.checked, id)
+        {
+            return true;
+        }
+        // Not usable: if another thread is quarantining it (holding `changes`), wait until its
+        // file and aliases are gone too, so that nobody sees an alias of an exemplar that is
+        // not described any more.
+        drop(lock(&self.changes));
+        false
     }
 
     /// Every exemplar (each verified first, if the background verification has not yet).
