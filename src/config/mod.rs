@@ -97,6 +97,31 @@ pub struct ServerConfig {
     pub max_dimension: u64,
     /// Most layers of an uploaded exemplar (elevation included).
     pub max_layers: usize,
+    /// The base URL clients reach the server at (`https://tiles.example.com` or with a path
+    /// prefix, no trailing slash), used for the absolute URLs of TileJSON, styles and `/worlds`.
+    /// Empty: the request's `Host` (and `X-Forwarded-Proto`) are reflected, with `Vary`, and the
+    /// listening address stands in when the `Host` is missing or invalid.
+    pub public_url: String,
+    /// Seconds a client has to send a request's head (request line and headers) once the server
+    /// waits for it; for HTTP/1 this includes the wait for the next request on a kept-alive
+    /// connection. Beyond, the connection is closed.
+    pub header_read_timeout_s: u64,
+    /// Seconds a connection may stay open without a request in progress (beyond: closed).
+    pub idle_timeout_s: u64,
+    /// Open client connections at most. When full, a new connection closes the one idle the
+    /// longest; when none is idle, it is refused.
+    pub max_connections: usize,
+    /// Longest request target (path and query), bytes (beyond: 414).
+    pub max_uri_bytes: usize,
+    /// Memory all exemplar uploads in progress may use together, MiB: each upload reserves its
+    /// body and its decoded size (estimated from the file header before decoding) from it;
+    /// beyond what is free, 503 (413 when one upload alone needs more).
+    pub upload_memory_mb: u64,
+    /// Exemplar uploads processed at once (beyond: 503).
+    pub max_concurrent_uploads: usize,
+    /// Failed admin authentications a client address may make per minute; beyond, its admin
+    /// requests are answered 429 until the minute has passed.
+    pub auth_failures_per_minute: u32,
 }
 
 impl ServerConfig {
@@ -152,6 +177,14 @@ impl Default for ServerConfig {
             max_pixels: 1 << 26,
             max_dimension: 32768,
             max_layers: 16,
+            public_url: String::new(),
+            header_read_timeout_s: 10,
+            idle_timeout_s: 60,
+            max_connections: 4096,
+            max_uri_bytes: 8192,
+            upload_memory_mb: 256,
+            max_concurrent_uploads: 2,
+            auth_failures_per_minute: 10,
         }
     }
 }
@@ -363,13 +396,70 @@ fn validate(s: &ServerConfig) -> Result<(), ConfigError> {
             "request_timeout_s and upload_timeout_s must be ≥ 1".into(),
         ));
     }
+    if s.header_read_timeout_s == 0 || s.idle_timeout_s == 0 {
+        return Err(ConfigError::Invalid(
+            "header_read_timeout_s and idle_timeout_s must be ≥ 1".into(),
+        ));
+    }
+    if s.max_connections == 0 || s.max_concurrent_uploads == 0 || s.upload_memory_mb == 0 {
+        return Err(ConfigError::Invalid(
+            "max_connections, max_concurrent_uploads and upload_memory_mb must be ≥ 1".into(),
+        ));
+    }
+    if s.max_uri_bytes < 256 {
+        return Err(ConfigError::Invalid(format!(
+            "max_uri_bytes {} must be ≥ 256",
+            s.max_uri_bytes
+        )));
+    }
+    if s.auth_failures_per_minute == 0 {
+        return Err(ConfigError::Invalid(
+            "auth_failures_per_minute must be ≥ 1".into(),
+        ));
+    }
+    check_public_url(&s.public_url)?;
+    Ok(())
+}
+
+/// Checks `public_url`: empty, or `http(s)://host[:port][/path]` without query, fragment or
+/// trailing slash.
+pub fn check_public_url(url: &str) -> Result<(), ConfigError> {
+    if url.is_empty() {
+        return Ok(());
+    }
+    let bad = |why: &str| {
+        Err(ConfigError::Invalid(format!(
+            "public_url `{url}` {why} (expected http(s)://host[:port][/path], no trailing slash)"
+        )))
+    };
+    let Ok(uri) = url.parse::<axum::http::Uri>() else {
+        return bad("is not a URL");
+    };
+    if !matches!(uri.scheme_str(), Some("http" | "https")) {
+        return bad("is not an http or https URL");
+    }
+    if uri
+        .authority()
+        .is_none_or(|a| a.host().is_empty() || a.as_str().contains('@'))
+    {
+        return bad("has no host (or carries credentials)");
+    }
+    if uri.query().is_some() || url.contains('#') {
+        return bad("has a query or fragment");
+    }
+    if url.ends_with('/') {
+        return bad("ends with a slash");
+    }
     Ok(())
 }
 
 /// Applies `TERRASYNTH_<KEY>` overrides (`LISTEN`, `CACHE_MB`, `STORE_DIR`, `CORS_ORIGINS` as a
 /// comma-separated list, `CACHE_CONTROL`, `SYNTH_CONCURRENCY`, `SYNTH_QUEUE`,
 /// `REQUEST_TIMEOUT_S`, `UPLOAD_TIMEOUT_S`, `ADMIN_TOKEN`, `BUILD_WORKERS`, `BUILD_THREADS`, `BUILD_QUEUE`,
-/// `MAX_BODY_MB`, `MAX_PIXELS`, `MAX_DIMENSION`, `MAX_LAYERS`). Other `TERRASYNTH_*` variables are ignored.
+/// `MAX_BODY_MB`, `MAX_PIXELS`, `MAX_DIMENSION`, `MAX_LAYERS`, `WEB_VENDOR_DIR`, `PUBLIC_URL`,
+/// `HEADER_READ_TIMEOUT_S`, `IDLE_TIMEOUT_S`, `MAX_CONNECTIONS`, `MAX_URI_BYTES`,
+/// `UPLOAD_MEMORY_MB`, `MAX_CONCURRENT_UPLOADS`, `AUTH_FAILURES_PER_MINUTE`). Other
+/// `TERRASYNTH_*` variables are ignored.
 pub fn apply_env(
     s: &mut ServerConfig,
     env: impl IntoIterator<Item = (String, String)>,
@@ -412,6 +502,14 @@ pub fn apply_env(
             "MAX_PIXELS" => s.max_pixels = num(&name, &v)?,
             "MAX_DIMENSION" => s.max_dimension = num(&name, &v)?,
             "MAX_LAYERS" => s.max_layers = num(&name, &v)?,
+            "PUBLIC_URL" => s.public_url = v.trim().to_string(),
+            "HEADER_READ_TIMEOUT_S" => s.header_read_timeout_s = num(&name, &v)?,
+            "IDLE_TIMEOUT_S" => s.idle_timeout_s = num(&name, &v)?,
+            "MAX_CONNECTIONS" => s.max_connections = num(&name, &v)?,
+            "MAX_URI_BYTES" => s.max_uri_bytes = num(&name, &v)?,
+            "UPLOAD_MEMORY_MB" => s.upload_memory_mb = num(&name, &v)?,
+            "MAX_CONCURRENT_UPLOADS" => s.max_concurrent_uploads = num(&name, &v)?,
+            "AUTH_FAILURES_PER_MINUTE" => s.auth_failures_per_minute = num(&name, &v)?,
             _ => {}
         }
     }
@@ -517,5 +615,49 @@ mod tests {
         ));
         let w = "name = \"bad name!\"\nbase = \"x.tif\"\n";
         assert!(parse_world(w, "w.toml", dir.path()).is_err());
+    }
+
+    #[test]
+    fn hardening_keys_are_read_overridden_and_validated() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.toml");
+        std::fs::write(
+            &p,
+            "worlds = []\npublic_url = \"https://tiles.example.com/terrain\"\n\
+             header_read_timeout_s = 5\nmax_connections = 64\n",
+        )
+        .unwrap();
+        let env = vec![
+            ("TERRASYNTH_IDLE_TIMEOUT_S".to_string(), "30".to_string()),
+            ("TERRASYNTH_UPLOAD_MEMORY_MB".into(), "300".into()),
+            ("TERRASYNTH_MAX_CONCURRENT_UPLOADS".into(), "3".into()),
+            ("TERRASYNTH_AUTH_FAILURES_PER_MINUTE".into(), "4".into()),
+            ("TERRASYNTH_MAX_URI_BYTES".into(), "4096".into()),
+        ];
+        let c = load(Some(&p), env).unwrap().server;
+        assert_eq!(c.public_url, "https://tiles.example.com/terrain");
+        assert_eq!((c.header_read_timeout_s, c.idle_timeout_s), (5, 30));
+        assert_eq!((c.max_connections, c.max_uri_bytes), (64, 4096));
+        assert_eq!((c.upload_memory_mb, c.max_concurrent_uploads), (300, 3));
+        assert_eq!(c.auth_failures_per_minute, 4);
+        for (line, key) in [
+            ("public_url = \"ftp://x\"", "public_url"),
+            ("public_url = \"https://x.example/\"", "public_url"),
+            ("public_url = \"https://x.example/?a=1\"", "public_url"),
+            ("public_url = \"tiles.example.com\"", "public_url"),
+            ("header_read_timeout_s = 0", "header_read_timeout_s"),
+            ("idle_timeout_s = 0", "idle_timeout_s"),
+            ("max_connections = 0", "max_connections"),
+            ("max_uri_bytes = 10", "max_uri_bytes"),
+            ("upload_memory_mb = 0", "upload_memory_mb"),
+            ("max_concurrent_uploads = 0", "max_concurrent_uploads"),
+            ("auth_failures_per_minute = 0", "auth_failures_per_minute"),
+        ] {
+            std::fs::write(&p, format!("worlds = []\n{line}\n")).unwrap();
+            assert!(
+                matches!(load(Some(&p), Vec::new()), Err(ConfigError::Invalid(m)) if m.contains(key)),
+                "{line}"
+            );
+        }
     }
 }

@@ -1,8 +1,15 @@
 //! The server's request error: every crate's error rolled up into one type that implements
 //! `IntoResponse` as an RFC 9457 `application/problem+json` body, never leaking internals (5xx
-//! details are logged, not sent). Start-up failures are a separate type, [`StartupError`].
+//! details are logged, not sent). Overload answers (503 with `Retry-After`) are not failures: they
+//! are never logged as errors, and carry their [`Overload`] reason to the metrics. Error responses
+//! produced outside the handlers (405, rejections of extractors, 413 of body limits) are given the
+//! same problem shape by [`problem_json`]. Start-up failures are a separate type,
+//! [`StartupError`].
 
+use axum::body::Body;
+use axum::extract::Request;
 use axum::http::{header, HeaderValue, StatusCode};
+use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use thiserror::Error;
@@ -10,6 +17,7 @@ use thiserror::Error;
 use terrasynth_store::{ServiceError, StoreError};
 use terrasynth_tiles::{RequestError, TileError};
 
+use super::metrics::Overload;
 use crate::config::ConfigError;
 
 /// An error answering a request.
@@ -36,6 +44,18 @@ pub enum ServerError {
     /// The synthesis queue is full (503 with `Retry-After`).
     #[error("the synthesis queue is full; retry shortly")]
     Busy,
+    /// The request outlived its deadline (503 with `Retry-After`).
+    #[error("the request took longer than {0} s; retry shortly")]
+    Timeout(u64),
+    /// Every upload slot is taken (503 with `Retry-After`).
+    #[error("{0}")]
+    UploadsBusy(String),
+    /// The client failed authentication too often (429 with `Retry-After`).
+    #[error("too many failed authentications from this address; retry in {0} s")]
+    TooManyRequests(u64),
+    /// The request target is longer than allowed (414).
+    #[error("{0}")]
+    UriTooLong(String),
     /// The tile URL names no tile.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -128,7 +148,12 @@ impl ServerError {
             ServerError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ServerError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ServerError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
-            ServerError::Busy => StatusCode::SERVICE_UNAVAILABLE,
+            ServerError::Busy | ServerError::Timeout(_) | ServerError::UploadsBusy(_) => {
+                StatusCode::SERVICE_UNAVAILABLE
+            }
+            ServerError::TooManyRequests(_) => StatusCode::TOO_MANY_REQUESTS,
+            ServerError::UriTooLong(_) => StatusCode::URI_TOO_LONG,
+            ServerError::Tile(TileError::Cancelled) => StatusCode::SERVICE_UNAVAILABLE,
             ServerError::Tile(
                 TileError::OutOfRange { .. }
                 | TileError::ZoomTooDeep { .. }
@@ -142,7 +167,7 @@ impl ServerError {
                 ServiceError::Undecodable(_) => StatusCode::BAD_REQUEST,
                 ServiceError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
                 ServiceError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
-                ServiceError::QueueFull => StatusCode::SERVICE_UNAVAILABLE,
+                ServiceError::QueueFull | ServiceError::Busy(_) => StatusCode::SERVICE_UNAVAILABLE,
                 // An id or name that cannot even be a file name names nothing.
                 ServiceError::Store(StoreError::BadName(_)) => StatusCode::NOT_FOUND,
                 ServiceError::Store(_) | ServiceError::Internal(_) => {
@@ -152,12 +177,18 @@ impl ServerError {
         }
     }
 
-    /// Whether this is an overload answer (503 with `Retry-After`), not a failure.
-    fn is_overload(&self) -> bool {
-        matches!(
-            self,
-            ServerError::Busy | ServerError::Service(ServiceError::QueueFull)
-        )
+    /// Why this is an overload answer (503 with `Retry-After`, not a failure), if it is one.
+    pub fn overload(&self) -> Option<Overload> {
+        match self {
+            ServerError::Busy => Some(Overload::SynthQueue),
+            ServerError::Timeout(_) => Some(Overload::Timeout),
+            ServerError::UploadsBusy(_) | ServerError::Service(ServiceError::Busy(_)) => {
+                Some(Overload::Uploads)
+            }
+            ServerError::Service(ServiceError::QueueFull) => Some(Overload::BuildQueue),
+            ServerError::Tile(TileError::Cancelled) => Some(Overload::Abandoned),
+            _ => None,
+        }
     }
 }
 
@@ -181,8 +212,8 @@ pub fn problem(status: StatusCode, detail: &str) -> Response {
 impl IntoResponse for ServerError {
     fn into_response(self) -> Response {
         let status = self.status();
-        let overload = self.is_overload();
-        let detail = if status.is_server_error() && !overload {
+        let overload = self.overload();
+        let detail = if status.is_server_error() && overload.is_none() {
             // Internals are logged, not sent.
             tracing::error!(error = %self, "request failed");
             "the server could not produce this resource".to_string()
@@ -190,9 +221,14 @@ impl IntoResponse for ServerError {
             self.to_string()
         };
         let mut resp = problem(status, &detail);
-        if overload {
+        if let Some(why) = overload {
             resp.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            resp.extensions_mut().insert(why);
+        }
+        if let ServerError::TooManyRequests(secs) = self {
+            resp.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(secs.max(1)));
         }
         if matches!(self, ServerError::Unauthorized(_)) {
             resp.headers_mut().insert(
@@ -202,4 +238,55 @@ impl IntoResponse for ServerError {
         }
         resp
     }
+}
+
+/// Largest body of an error response that [`problem_json`] reads to reuse as the detail.
+const MAX_DETAIL_BYTES: usize = 4096;
+
+/// Middleware giving every error response the problem+json shape: responses with a 4xx or 5xx
+/// status that are not problem documents already (405 of the router, rejections of axum's
+/// extractors such as an invalid UTF-8 path, 413 of body limits) are rewritten as one, keeping
+/// their status and headers (`Allow`, `Retry-After`) and using a short plain-text body as the
+/// detail.
+pub async fn problem_json(req: Request, next: Next) -> Response {
+    let resp = next.run(req).await;
+    let status = resp.status();
+    let is_problem = resp
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/problem+json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_problem {
+        return resp;
+    }
+    let is_text = resp
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"text/plain"));
+    let (mut parts, body) = resp.into_parts();
+    // A 5xx body could carry internals: only client errors keep their text.
+    let text = if is_text && status.is_client_error() {
+        axum::body::to_bytes(body, MAX_DETAIL_BYTES)
+            .await
+            .ok()
+            .and_then(|b| String::from_utf8(b.to_vec()).ok())
+            .filter(|t| !t.trim().is_empty())
+    } else {
+        None
+    };
+    let detail = text.unwrap_or_else(|| match status {
+        StatusCode::METHOD_NOT_ALLOWED => "this method is not allowed on this resource".into(),
+        _ => status
+            .canonical_reason()
+            .unwrap_or("error")
+            .to_ascii_lowercase(),
+    });
+    let fresh = problem(status, detail.trim());
+    parts.headers.remove(header::CONTENT_LENGTH);
+    parts.headers.remove(header::TRANSFER_ENCODING);
+    parts.headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/problem+json"),
+    );
+    let (_, body) = fresh.into_parts();
+    Response::from_parts(parts, Body::new(body))
 }

@@ -1,7 +1,9 @@
 //! Metadata handlers: `/worlds`, `/worlds/{world}`, TileJSON per layer, the MapLibre style of a
 //! world (`/styles/{world}.json`), `/healthz`, `/metrics`. The documents themselves come from the
-//! tiles crate ([`terrasynth_tiles::style`]); this module only adds the base URL clients reached
-//! us at.
+//! tiles crate ([`terrasynth_tiles::style`]); this module only adds the base URL of their
+//! absolute URLs: the configured `public_url`, or else the `Host` (and `X-Forwarded-Proto`) the
+//! request came with — then the answer says `Vary: Host, X-Forwarded-Proto`, so that caches keep
+//! one copy per host — with the listening address standing in for a missing or invalid `Host`.
 
 use axum::extract::{Path, State};
 use axum::http::{header, HeaderMap, HeaderValue};
@@ -14,6 +16,7 @@ use terrasynth_tiles::{TileJson, World};
 
 use super::error::{Problem, ServerError};
 use super::state::AppState;
+use crate::config::ServerConfig;
 
 /// JSON description of a world.
 #[derive(Debug, Serialize, utoipa::ToSchema)]
@@ -64,30 +67,61 @@ fn info(w: &World, base: &str) -> WorldInfo {
     }
 }
 
-/// The scheme and host clients reached us at, for absolute URLs in TileJSON.
-fn base_url(headers: &HeaderMap) -> String {
+/// The base of absolute URLs: `public_url` when configured; else the scheme and host the client
+/// reached us at (`Some` of the `Vary` header the answer then needs).
+fn base_url(config: &ServerConfig, headers: &HeaderMap) -> (String, Option<HeaderValue>) {
+    if !config.public_url.is_empty() {
+        return (config.public_url.clone(), None);
+    }
+    let fallback = fallback_host(&config.listen);
     let host = headers
         .get(header::HOST)
         .and_then(|h| h.to_str().ok())
         .filter(|h| {
-            h.chars()
-                .all(|c| c.is_ascii_alphanumeric() || ".-:[]".contains(c))
+            !h.is_empty()
+                && h.len() <= 255
+                && h.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || ".-:[]".contains(c))
         })
-        .unwrap_or("127.0.0.1:8080");
+        .unwrap_or(&fallback);
     let proto = headers
         .get("x-forwarded-proto")
         .and_then(|h| h.to_str().ok())
         .filter(|p| *p == "https" || *p == "http")
         .unwrap_or("http");
-    format!("{proto}://{host}")
+    (
+        format!("{proto}://{host}"),
+        Some(HeaderValue::from_static("Host, X-Forwarded-Proto")),
+    )
+}
+
+/// The host of the listening address, with a wildcard address replaced by loopback (a client
+/// cannot connect to `0.0.0.0`).
+fn fallback_host(listen: &str) -> String {
+    match listen.parse::<std::net::SocketAddr>() {
+        Ok(a) if a.ip().is_unspecified() && a.is_ipv4() => format!("127.0.0.1:{}", a.port()),
+        Ok(a) if a.ip().is_unspecified() => format!("[::1]:{}", a.port()),
+        Ok(a) => a.to_string(),
+        Err(_) => listen.to_string(),
+    }
+}
+
+/// A JSON answer whose URLs were built on `base_url`'s base, with its `Vary` header.
+fn json_varying<T: Serialize>(body: T, vary: Option<HeaderValue>) -> Response {
+    let mut resp = Json(body).into_response();
+    if let Some(v) = vary {
+        resp.headers_mut().insert(header::VARY, v);
+    }
+    resp
 }
 
 /// Every world.
 #[utoipa::path(get, path = "/worlds", tag = "meta",
     responses((status = 200, description = "Worlds", body = Vec<WorldInfo>)))]
-pub async fn worlds(State(state): State<AppState>, headers: HeaderMap) -> Json<Vec<WorldInfo>> {
-    let base = base_url(&headers);
-    Json(state.worlds.values().map(|w| info(w, &base)).collect())
+pub async fn worlds(State(state): State<AppState>, headers: HeaderMap) -> Response {
+    let (base, vary) = base_url(&state.config, &headers);
+    let list: Vec<WorldInfo> = state.worlds.values().map(|w| info(w, &base)).collect();
+    json_varying(list, vary)
 }
 
 /// One world.
@@ -101,9 +135,10 @@ pub async fn world(
     State(state): State<AppState>,
     Path(name): Path<String>,
     headers: HeaderMap,
-) -> Result<Json<WorldInfo>, ServerError> {
+) -> Result<Response, ServerError> {
     let w = state.world(&name)?;
-    Ok(Json(info(&w, &base_url(&headers))))
+    let (base, vary) = base_url(&state.config, &headers);
+    Ok(json_varying(info(&w, &base), vary))
 }
 
 /// TileJSON 3.0.0 of a layer.
@@ -124,11 +159,12 @@ pub async fn tilejson(
     State(state): State<AppState>,
     Path((name, file)): Path<(String, String)>,
     headers: HeaderMap,
-) -> Result<Json<TileJson>, ServerError> {
+) -> Result<Response, ServerError> {
     let w = state.world(&name)?;
+    let (base, vary) = base_url(&state.config, &headers);
     file.strip_suffix(".json")
-        .and_then(|layer| tilejson_of(&w, &base_url(&headers), layer))
-        .map(Json)
+        .and_then(|layer| tilejson_of(&w, &base, layer))
+        .map(|t: TileJson| json_varying(t, vary))
         .ok_or_else(|| ServerError::NotFound(format!("no TileJSON `{file}`")))
 }
 
@@ -149,12 +185,13 @@ pub async fn style(
     State(state): State<AppState>,
     Path(file): Path<String>,
     headers: HeaderMap,
-) -> Result<Json<serde_json::Value>, ServerError> {
+) -> Result<Response, ServerError> {
     let name = file
         .strip_suffix(".json")
         .ok_or_else(|| ServerError::NotFound(format!("no style `{file}`")))?;
     let w = state.world(name)?;
-    Ok(Json(style_json(&w, &base_url(&headers))))
+    let (base, vary) = base_url(&state.config, &headers);
+    Ok(json_varying(style_json(&w, &base), vary))
 }
 
 /// Liveness.

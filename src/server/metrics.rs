@@ -1,10 +1,18 @@
 //! Prometheus metrics: request counts and latency histograms by route and status, plus the
 //! worlds' cache and synthesis counters, rendered as the text exposition format.
+//!
+//! Every label set is bounded, whatever clients send: `route` is a route template of the router
+//! (or `unmatched`), `method` one of the methods HTTP defines (anything else is `other`), `status`
+//! a status the server answers. Conditions clients cause — overload, slow or idle connections,
+//! failed authentication — are counted here instead of being logged one line each.
 
 use std::collections::BTreeMap;
 use std::fmt::Write;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Duration;
+
+use axum::http::Method;
 
 use terrasynth_tiles::World;
 
@@ -23,23 +31,111 @@ struct Series {
 /// A world counter: name, Prometheus type, help text and how to read it.
 type Counter = (&'static str, &'static str, &'static str, fn(&World) -> f64);
 
-/// Request metrics, keyed by (route template, method, status).
+/// Why a request was answered 503 without being served.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Overload {
+    /// The tile synthesis queue was full.
+    SynthQueue,
+    /// The request outlived its deadline (`request_timeout_s` or `upload_timeout_s`).
+    Timeout,
+    /// The dictionary build queue was full.
+    BuildQueue,
+    /// Every upload slot was taken, or the upload memory budget was spent.
+    Uploads,
+    /// Nobody waited for the computation any more.
+    Abandoned,
+}
+
+impl Overload {
+    const ALL: [Overload; 5] = [
+        Overload::SynthQueue,
+        Overload::Timeout,
+        Overload::BuildQueue,
+        Overload::Uploads,
+        Overload::Abandoned,
+    ];
+
+    fn label(self) -> &'static str {
+        match self {
+            Overload::SynthQueue => "synth_queue",
+            Overload::Timeout => "timeout",
+            Overload::BuildQueue => "build_queue",
+            Overload::Uploads => "uploads",
+            Overload::Abandoned => "abandoned",
+        }
+    }
+}
+
+/// Counters of conditions clients cause, each a plain number (no label a client chooses).
+#[derive(Debug, Default)]
+pub struct Counters {
+    overload: [AtomicU64; Overload::ALL.len()],
+    /// Client connections accepted.
+    pub connections_accepted: AtomicU64,
+    /// Client connections open now.
+    pub connections_open: AtomicU64,
+    /// Idle connections closed to make room for a new one (`max_connections` reached).
+    pub connections_evicted: AtomicU64,
+    /// Connections refused because every open one had a request in progress.
+    pub connections_refused: AtomicU64,
+    /// Connections closed for sending no complete request head in time, or idling too long.
+    pub connections_timed_out: AtomicU64,
+    /// Errors accepting connections (such as running out of file descriptors).
+    pub accept_errors: AtomicU64,
+    /// Failed admin authentications (missing or wrong token).
+    pub auth_failures: AtomicU64,
+    /// Admin requests refused (429) because their address failed authentication too often.
+    pub auth_throttled: AtomicU64,
+}
+
+impl Counters {
+    /// Counts one overload answer.
+    pub fn overload(&self, why: Overload) {
+        if let Some(c) = Overload::ALL
+            .iter()
+            .position(|o| *o == why)
+            .and_then(|k| self.overload.get(k))
+        {
+            c.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// The method label: a method HTTP defines, or `other` (so that clients cannot add series).
+pub fn method_label(m: &Method) -> &'static str {
+    match *m {
+        Method::GET => "GET",
+        Method::HEAD => "HEAD",
+        Method::POST => "POST",
+        Method::PUT => "PUT",
+        Method::DELETE => "DELETE",
+        Method::OPTIONS => "OPTIONS",
+        Method::PATCH => "PATCH",
+        Method::TRACE => "TRACE",
+        Method::CONNECT => "CONNECT",
+        _ => "other",
+    }
+}
+
+/// Request metrics, keyed by (route template, method, status), and the client-caused counters.
 #[derive(Debug, Default)]
 pub struct Metrics {
-    series: Mutex<BTreeMap<(String, String, u16), Series>>,
+    series: Mutex<BTreeMap<(String, &'static str, u16), Series>>,
+    /// Counters of client-caused conditions.
+    pub counters: Counters,
 }
 
 impl Metrics {
-    /// Records one request.
-    pub fn record(&self, route: &str, method: &str, status: u16, elapsed: Duration) {
+    /// Records one request. `route` must be a route template (or `unmatched`), never a path a
+    /// client chose.
+    pub fn record(&self, route: &str, method: &Method, status: u16, elapsed: Duration) {
+        let method = method_label(method);
         let secs = elapsed.as_secs_f64();
         let mut map = match self.series.lock() {
             Ok(m) => m,
             Err(poisoned) => poisoned.into_inner(),
         };
-        let s = map
-            .entry((route.to_string(), method.to_string(), status))
-            .or_default();
+        let s = map.entry((route.to_string(), method, status)).or_default();
         s.count += 1;
         s.sum += secs;
         for (i, b) in BUCKETS.iter().enumerate() {
@@ -98,8 +194,9 @@ impl Metrics {
                 s.count
             );
         }
+        self.render_counters(&mut out);
         let worlds: Vec<&World> = worlds.collect();
-        let counters: [Counter; 5] = [
+        let counters: [Counter; 6] = [
             (
                 "terrasynth_cache_hits_total",
                 "counter",
@@ -130,6 +227,12 @@ impl Metrics {
                 "Bytes held by the level-tile cache.",
                 |w| w.cache_bytes() as f64,
             ),
+            (
+                "terrasynth_synthesis_cancelled_total",
+                "counter",
+                "Level-tile computations abandoned because nobody waited for them any more.",
+                |w| w.stats().cancelled as f64,
+            ),
         ];
         for (name, kind, help, get) in counters {
             let _ = writeln!(out, "# HELP {name} {help}");
@@ -139,5 +242,77 @@ impl Metrics {
             }
         }
         out
+    }
+
+    fn render_counters(&self, out: &mut String) {
+        let c = &self.counters;
+        let _ = writeln!(
+            out,
+            "# HELP terrasynth_overload_total Requests answered 503 without being served, by reason."
+        );
+        let _ = writeln!(out, "# TYPE terrasynth_overload_total counter");
+        for (o, n) in Overload::ALL.iter().zip(&c.overload) {
+            let _ = writeln!(
+                out,
+                "terrasynth_overload_total{{reason=\"{}\"}} {}",
+                o.label(),
+                n.load(Ordering::Relaxed)
+            );
+        }
+        let plain: [(&str, &str, &str, &AtomicU64); 8] = [
+            (
+                "terrasynth_connections_accepted_total",
+                "counter",
+                "Client connections accepted.",
+                &c.connections_accepted,
+            ),
+            (
+                "terrasynth_connections_open",
+                "gauge",
+                "Client connections open.",
+                &c.connections_open,
+            ),
+            (
+                "terrasynth_connections_evicted_total",
+                "counter",
+                "Idle connections closed to make room for new ones (max_connections reached).",
+                &c.connections_evicted,
+            ),
+            (
+                "terrasynth_connections_refused_total",
+                "counter",
+                "Connections refused because every open connection had a request in progress.",
+                &c.connections_refused,
+            ),
+            (
+                "terrasynth_connections_timed_out_total",
+                "counter",
+                "Connections closed for a request head not sent in time or too long an idle time.",
+                &c.connections_timed_out,
+            ),
+            (
+                "terrasynth_accept_errors_total",
+                "counter",
+                "Errors accepting connections (such as running out of file descriptors).",
+                &c.accept_errors,
+            ),
+            (
+                "terrasynth_auth_failures_total",
+                "counter",
+                "Failed admin authentications.",
+                &c.auth_failures,
+            ),
+            (
+                "terrasynth_auth_throttled_total",
+                "counter",
+                "Admin requests refused (429) after too many failed authentications.",
+                &c.auth_throttled,
+            ),
+        ];
+        for (name, kind, help, v) in plain {
+            let _ = writeln!(out, "# HELP {name} {help}");
+            let _ = writeln!(out, "# TYPE {name} {kind}");
+            let _ = writeln!(out, "{name} {}", v.load(Ordering::Relaxed));
+        }
     }
 }

@@ -2,11 +2,14 @@
 //! in [`api_routes`]), handlers that translate HTTP into calls of the tiles and store crates
 //! ([`tiles`], [`meta`], [`features`], [`web`], the admin API in [`admin`]), errors as problem+json
 //! ([`error`]), Prometheus metrics ([`metrics`]), the shared state ([`state`]), world loading
-//! ([`worlds`]) and start-up ([`startup`]). CPU work (tile synthesis and encoding) and blocking
-//! IO run on tokio's blocking pool, tiles behind a semaphore and a bounded queue; the async
-//! runtime only moves bytes.
+//! ([`worlds`]), start-up ([`startup`]) and the accept loop with its connection limits
+//! ([`connections`]). CPU work (tile synthesis and encoding) and blocking IO run on tokio's
+//! blocking pool, tiles behind a semaphore and a bounded queue; the async runtime only moves
+//! bytes. A request that outlives its deadline, or whose client leaves, cancels the synthesis
+//! nobody else waits for.
 
 pub mod admin;
+pub mod connections;
 pub mod error;
 pub mod features;
 pub mod meta;
@@ -23,11 +26,11 @@ use std::time::{Duration, Instant};
 use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
-use axum::response::Response;
+use axum::response::{IntoResponse, Response};
 use axum::Router;
+use tower_http::classify::ServerErrorsFailureClass;
 use tower_http::compression::CompressionLayer;
 use tower_http::cors::{AllowOrigin, CorsLayer};
-use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -35,22 +38,66 @@ use utoipa_axum::routes;
 pub use error::{ServerError, StartupError};
 pub use startup::{return_large_buffers_to_os, serve};
 pub use state::{AppState, LiveWorlds};
-pub use worlds::{load_worlds, Worlds};
+pub use worlds::{load_worlds, share_shortfall, Worlds};
 
 use crate::config::ServerConfig;
+use metrics::Overload;
 
 async fn record_metrics(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let start = Instant::now();
+    // A route template (bounded), never the path the client sent.
     let route = req
         .extensions()
         .get::<MatchedPath>()
         .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
-    let method = req.method().to_string();
+    let method = req.method().clone();
     let resp = next.run(req).await;
+    if let Some(why) = resp.extensions().get::<Overload>() {
+        state.metrics.counters.overload(*why);
+    }
     state
         .metrics
         .record(&route, &method, resp.status().as_u16(), start.elapsed());
     resp
+}
+
+/// Answers 503 (problem+json, `Retry-After`) when the inner service takes longer than `limit`.
+/// Dropping the inner future drops its cancellation guards, so that synthesis nobody else waits
+/// for stops too.
+async fn deadline(limit: Duration, req: Request, next: Next) -> Response {
+    match tokio::time::timeout(limit, next.run(req)).await {
+        Ok(resp) => resp,
+        Err(_) => ServerError::Timeout(limit.as_secs()).into_response(),
+    }
+}
+
+/// 414 (problem+json) for a request target longer than `max_uri_bytes`.
+async fn limit_uri(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let len = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    let max = state.config.max_uri_bytes;
+    if len > max {
+        return ServerError::UriTooLong(format!(
+            "the request target has {len} bytes; at most {max} are accepted"
+        ))
+        .into_response();
+    }
+    next.run(req).await
+}
+
+/// Logs server faults at ERROR, but overload answers (503) only at DEBUG: they are counted in
+/// the metrics, and a flood of them must not flood the log.
+fn on_failure(class: ServerErrorsFailureClass, latency: Duration, _span: &tracing::Span) {
+    match class {
+        ServerErrorsFailureClass::StatusCode(StatusCode::SERVICE_UNAVAILABLE) => {
+            tracing::debug!(
+                latency_ms = latency.as_millis() as u64,
+                "overloaded: answered 503"
+            )
+        }
+        other => {
+            tracing::error!(classification = %other, latency_ms = latency.as_millis() as u64, "response failed")
+        }
+    }
 }
 
 async fn not_found() -> ServerError {
@@ -135,26 +182,26 @@ pub fn app(state: AppState) -> Router {
                 admin::auth::authorize,
             ))
             .layer(axum::extract::DefaultBodyLimit::max(max_body))
-            .layer(TimeoutLayer::with_status_code(
-                StatusCode::SERVICE_UNAVAILABLE,
-                upload_timeout,
-            ))
+            .layer(middleware::from_fn(move |req, next| {
+                deadline(upload_timeout, req, next)
+            }))
     } else {
         Router::new()
     };
     public
-        .layer(TimeoutLayer::with_status_code(
-            StatusCode::SERVICE_UNAVAILABLE,
-            timeout,
-        ))
+        .layer(middleware::from_fn(move |req, next| {
+            deadline(timeout, req, next)
+        }))
         .merge(admin)
         .fallback(not_found)
+        .layer(middleware::from_fn_with_state(state.clone(), limit_uri))
+        .layer(middleware::from_fn(error::problem_json))
         .layer(middleware::from_fn_with_state(
             state.clone(),
             record_metrics,
         ))
         .layer(tower::limit::GlobalConcurrencyLimitLayer::new(4096))
         .layer(cors(&state.config))
-        .layer(TraceLayer::new_for_http())
+        .layer(TraceLayer::new_for_http().on_failure(on_failure))
         .with_state(state)
 }

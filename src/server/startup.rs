@@ -4,8 +4,7 @@
 
 use std::collections::BTreeSet;
 use std::sync::Arc;
-
-use axum::serve::ListenerExt;
+use std::time::Duration;
 
 use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_core::raster::ReadLimits;
@@ -14,9 +13,10 @@ use terrasynth_store::worlds::weights_map;
 use terrasynth_store::{Catalogue, JobSettings, Store, WorldDefaults};
 
 use super::admin::Admin;
+use super::connections;
 use super::error::StartupError;
 use super::state::{AppState, LiveWorlds};
-use super::worlds::{load_worlds, prepare_landscapes, world_from, Worlds};
+use super::worlds::{load_worlds, prepare_landscapes, share_shortfall, world_from, Worlds};
 use crate::config::Config;
 
 /// What worlds created through the admin API inherit: the first configured world's settings
@@ -67,6 +67,9 @@ pub fn state_with(config: &Config, store: Store, worlds: Worlds) -> Result<AppSt
             .and_then(|r| world_from(r, cache_bytes).map_err(|e| e.to_string()))
         {
             Ok(w) => {
+                if let Some(why) = share_shortfall(&w) {
+                    tracing::warn!(world = %name, "{why}");
+                }
                 tracing::info!(world = %name, id = %id, "world: loaded from the store");
                 live.insert(Arc::new(w));
             }
@@ -81,7 +84,7 @@ pub fn state_with(config: &Config, store: Store, worlds: Worlds) -> Result<AppSt
         },
         max_dimension: s.max_dimension,
     };
-    let admin = Admin::new(catalogue, &s.admin_token.0, limits, cache_bytes);
+    let admin = Admin::new(catalogue, s, limits, cache_bytes);
     AppState::new(live, Some(Arc::new(admin)), s)
 }
 
@@ -163,16 +166,31 @@ pub async fn serve(config: Config) -> Result<(), StartupError> {
     let local = listener
         .local_addr()
         .map_err(|e| StartupError::Runtime(e.to_string()))?;
-    tracing::info!(addr = %local, "listening");
-    // Tiles are written whole: without TCP_NODELAY a tile's last segment can wait on the
-    // client's delayed ACK.
-    let listener = listener.tap_io(|tcp| {
-        if let Err(e) = tcp.set_nodelay(true) {
-            tracing::debug!("cannot set TCP_NODELAY: {e}");
-        }
-    });
-    axum::serve(listener, super::app(state))
-        .with_graceful_shutdown(shutdown_signal())
-        .await
-        .map_err(|e| StartupError::Runtime(e.to_string()))
+    let mut state = state;
+    if local.to_string() != state.config.listen {
+        // The address clients can reach (port 0 resolved), for URLs without a valid `Host`.
+        let mut c = (*state.config).clone();
+        c.listen = local.to_string();
+        state.config = Arc::new(c);
+    }
+    if config.server.public_url.is_empty() && local.ip().is_unspecified() {
+        tracing::info!("public_url is not set: TileJSON and style URLs reflect each request's Host (set public_url behind a proxy or CDN)");
+    }
+    let s = &config.server;
+    let limits = connections::Limits {
+        header_read_timeout: Duration::from_secs(s.header_read_timeout_s),
+        idle_timeout: Duration::from_secs(s.idle_timeout_s),
+        max_connections: connections::fit_open_files(s.max_connections),
+    };
+    tracing::info!(addr = %local, max_connections = limits.max_connections, "listening");
+    let metrics = state.metrics.clone();
+    connections::serve(
+        listener,
+        super::app(state),
+        limits,
+        metrics,
+        shutdown_signal(),
+    )
+    .await;
+    Ok(())
 }

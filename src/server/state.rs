@@ -10,7 +10,7 @@ use axum::http::HeaderValue;
 use moka::sync::Cache;
 use tokio::sync::Semaphore;
 
-use terrasynth_tiles::World;
+use terrasynth_tiles::{Flights, World};
 
 use super::admin::Admin;
 use super::error::{ServerError, StartupError};
@@ -108,6 +108,9 @@ pub struct AppState {
     pub admin: Option<Arc<Admin>>,
     /// Encoded tiles by ETag, weighed in bytes.
     pub tile_bytes: Cache<String, Bytes>,
+    /// Encoded tiles being computed, by ETag: concurrent requests for one tile wait for one
+    /// computation, which stops when all of them have left.
+    pub tile_flights: Arc<Flights<String, Bytes>>,
     /// Concurrent tile computations.
     pub synth: Arc<Semaphore>,
     /// Requests waiting for a computation slot.
@@ -127,6 +130,7 @@ impl Clone for AppState {
             live: self.live.clone(),
             admin: self.admin.clone(),
             tile_bytes: self.tile_bytes.clone(),
+            tile_flights: self.tile_flights.clone(),
             synth: self.synth.clone(),
             queue: self.queue.clone(),
             cache_control: self.cache_control.clone(),
@@ -158,6 +162,7 @@ impl AppState {
                 })
                 .max_capacity(bytes_capacity)
                 .build(),
+            tile_flights: Arc::new(Flights::new()),
             synth: Arc::new(Semaphore::new(config.synth_concurrency.max(1))),
             queue: Arc::new(Queue::new(config.synth_queue)),
             cache_control,

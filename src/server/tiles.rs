@@ -1,20 +1,41 @@
 //! The tile handler: `GET/HEAD /tiles/{world}/{layer}/{z}/{x}/{y}.{ext}`. It parses the request
-//! (the tiles crate's [`parse_request`]), answers `If-None-Match` with 304 from the strong ETag
-//! without computing anything, serves encoded tiles from the byte cache, and computes a miss on
-//! the blocking pool behind a bounded queue (full → 503), never on an async runtime thread.
-
-use std::collections::HashMap;
-use std::sync::Arc;
+//! strictly from the raw path (the tiles crate's [`parse_request`]: one spelling per tile),
+//! answers `If-None-Match` with 304 from the strong ETag without computing anything, serves
+//! encoded tiles from the byte cache, and computes a miss on the blocking pool behind a bounded
+//! queue (full → 503), never on an async runtime thread. The computation runs under a
+//! cancellation token the handler's future holds: when the client leaves or the deadline passes,
+//! the synthesis stops unless another request still waits for it.
 
 use axum::body::{Body, Bytes};
-use axum::extract::{Path, Query, State};
-use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{Query, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
 
-use terrasynth_tiles::{check_against_world, etag, parse_request, render, TileError};
+use terrasynth_tiles::{
+    check_against_world, etag, parse_request, query_map, render, run_cancellable, CancelToken,
+    RequestError,
+};
 
 use super::error::{Problem, ServerError};
 use super::state::AppState;
+
+/// The raw (still percent-encoded) segments `world, layer, z, x, y.ext` of a tile path.
+fn tile_segments(uri: &Uri) -> Result<[&str; 5], ServerError> {
+    let mut parts = uri.path().split('/').skip(1);
+    let (Some("tiles"), Some(w), Some(l), Some(z), Some(x), Some(y), None) = (
+        parts.next(),
+        parts.next(),
+        parts.next(),
+        parts.next(),
+        parts.next(),
+        parts.next(),
+        parts.next(),
+    ) else {
+        return Err(ServerError::NotFound("no such resource".into()));
+    };
+    Ok([w, l, z, x, y])
+}
 
 fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
     headers
@@ -46,19 +67,23 @@ fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
         (status = 200, description = "The tile; strong `ETag`, `Cache-Control` from the configuration",
             content(("image/png"), ("image/x-exr"))),
         (status = 304, description = "Not modified (the `If-None-Match` ETag matches)"),
-        (status = 400, description = "Malformed coordinates or parameters", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Malformed or non-canonical coordinates (sign, leading zeros, percent-encoding), unknown or repeated parameters, parameters that do not apply to the format", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown world, layer or format, zoom too deep, tile outside the world", body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "Synthesis queue full (`Retry-After`)", body = Problem, content_type = "application/problem+json")
+        (status = 503, description = "Synthesis queue full or request timed out (`Retry-After`)", body = Problem, content_type = "application/problem+json")
     )
 )]
 pub async fn tile(
     State(state): State<AppState>,
-    Path((world_name, layer, z, x, y_ext)): Path<(String, String, String, String, String)>,
-    Query(query): Query<HashMap<String, String>>,
+    uri: Uri,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
     headers: HeaderMap,
 ) -> Result<Response, ServerError> {
-    let world = state.world(&world_name)?;
-    let req = parse_request(&world_name, &layer, &z, &x, &y_ext, &query)?;
+    let [world_name, layer, z, x, y_ext] = tile_segments(&uri)?;
+    let Query(pairs) =
+        query.map_err(|e| RequestError::BadRequest(format!("malformed query: {e}")))?;
+    let query = query_map(&pairs)?;
+    let world = state.world(world_name)?;
+    let req = parse_request(world_name, layer, z, x, y_ext, &query)?;
     check_against_world(&world, &req)?;
     world.check_tile(req.z, req.x, req.y)?;
     let tag = etag(&world, &req);
@@ -79,6 +104,9 @@ pub async fn tile(
     let bytes = match state.tile_bytes.get(&tag) {
         Some(b) => b,
         None => {
+            // Cancelled when this future is dropped: the client left or the deadline passed.
+            let token = CancelToken::new();
+            let _cancel_on_drop = token.cancel_on_drop();
             let _slot = state.queue.enter()?;
             let permit = state
                 .synth
@@ -87,12 +115,22 @@ pub async fn tile(
                 .await
                 .map_err(|e| ServerError::Internal(e.to_string()))?;
             let cache = state.tile_bytes.clone();
+            let flights = state.tile_flights.clone();
             let key = tag.clone();
             tokio::task::spawn_blocking(move || {
                 let _permit = permit;
-                cache
-                    .try_get_with(key, || render(&world, &req).map(Bytes::from))
-                    .map_err(|e: Arc<TileError>| ServerError::Tile((*e).clone()))
+                run_cancellable(&token, || {
+                    flights.run(
+                        key.clone(),
+                        // A flight that ended since the lookup above may have cached it.
+                        || match cache.get(&key) {
+                            Some(b) => Ok(b),
+                            None => render(&world, &req).map(Bytes::from),
+                        },
+                        |b| cache.insert(key.clone(), b.clone()),
+                    )
+                })
+                .map_err(ServerError::Tile)
             })
             .await
             .map_err(|e| ServerError::Internal(e.to_string()))??

@@ -1,7 +1,9 @@
 //! Worlds: loading the configured worlds (resolve each base raster, find the world's dictionary
 //! in the store by an alias derived from its build settings or build it there on first start,
 //! with a log line per stage), assembling worlds the admin API created from their resolved
-//! definitions, and computing their whole-world landscape layers in the background.
+//! definitions, and computing their whole-world landscape layers in the background. A world
+//! whose cache share cannot hold its whole-world layers is refused when created through the
+//! admin API and loaded with a warning otherwise ([`share_shortfall`]).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -14,7 +16,7 @@ use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
 use terrasynth_core::dictionary::{Dictionary, ExemplarOptions, Learning};
 use terrasynth_core::landscape::exemplar_vegetation;
 use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
-use terrasynth_store::{ResolvedWorld, Store};
+use terrasynth_store::{ResolvedWorld, Store, Stored};
 use terrasynth_tiles::{TileError, World, WorldParts};
 
 use super::error::StartupError;
@@ -156,7 +158,9 @@ fn world_dictionary(
                 tracing::warn!(world = %world.name, id = %id, "dictionary: alias points at a missing object; rebuilding")
             }
             Err(e) => {
-                tracing::warn!(world = %world.name, error = %e, "dictionary: stored object unusable; rebuilding")
+                tracing::warn!(world = %world.name, error = %e, "dictionary: stored object unusable; rebuilding");
+                // Out of the way, so that the rebuilt dictionary can take its place.
+                store.quarantine(Stored::Dictionary, &id, &e)?;
             }
         }
     }
@@ -166,6 +170,26 @@ fn world_dictionary(
     store.set_alias(&alias, &id)?;
     tracing::info!(world = %world.name, id = %id, "dictionary: stored");
     Ok((Arc::new(d), id))
+}
+
+/// Why `world`'s cache share cannot hold its whole-world layers and leave its level caches their
+/// part, worded for the operator; `None` when it can.
+pub fn share_shortfall(world: &World) -> Option<String> {
+    let m = world.memory();
+    if m.fits() {
+        return None;
+    }
+    let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+    Some(format!(
+        "the whole-world landscape layers of world `{}` need {:.1} MiB but its share of cache_mb \
+         is {:.1} MiB: it will hold about {:.1} MiB more than its share; raise cache_mb so that \
+         each world's share is at least {:.1} MiB",
+        world.name(),
+        mib(m.whole_world),
+        mib(m.share),
+        mib(m.whole_world + m.level_caches - m.share),
+        mib(m.whole_world.saturating_mul(4).div_ceil(3)),
+    ))
 }
 
 /// Loads every configured world, building missing dictionaries into `store`.
@@ -197,6 +221,9 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
             sparsity: wc.sparsity,
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
+        if let Some(why) = share_shortfall(&world) {
+            tracing::warn!(world = %wc.name, "{why}");
+        }
         tracing::info!(world = %wc.name, z_base = world.z_base(), max_zoom = world.max_zoom(), seconds = t.elapsed().as_secs_f64(), "world: ready");
         worlds.insert(wc.name.clone(), Arc::new(world));
     }

@@ -10,6 +10,8 @@
 //!   binary;
 //! - [`e2e`]: `terrasynth serve` on a real socket on the default world;
 //! - [`admin_e2e`]: the admin flow, restarts and crashes on the real binary;
+//! - [`hardening`]: one test per defect of issue #14 (bounded under abuse, one error shape,
+//!   strict parsing, store hygiene, failed authentication);
 //! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list.
 //!
 //! Shared helpers are in [`support`] and the `terrasynth-test-support` crate.
@@ -21,6 +23,7 @@ mod admin;
 mod admin_e2e;
 mod cli;
 mod e2e;
+mod hardening;
 mod openapi;
 mod server;
 mod sketch;

@@ -12,7 +12,7 @@ use terrasynth_core::dictionary::Dictionary;
 
 use crate::error::StoreError;
 use crate::exemplar::{self, ExemplarHeader};
-use crate::store::{ObjectKind, Store};
+use crate::store::{ObjectKind, Store, Stored};
 
 /// Locks a mutex, recovering the data of a poisoned one (a panic elsewhere never makes the
 /// catalogue unusable).
@@ -123,20 +123,21 @@ pub struct Catalog {
 }
 
 impl Catalog {
-    /// Reads the metadata of every exemplar and dictionary of `store` (unusable ones are logged
-    /// and skipped).
+    /// Reads the metadata of every exemplar and dictionary of `store`. Exemplars are described
+    /// from their headers alone (their first bytes: the pixels of a large store are not read
+    /// before the server listens; every read of the pixels verifies them, and the catalogue
+    /// service verifies them all in the background); an exemplar whose header is unusable is
+    /// quarantined. Dictionaries are read whole (and so verified).
     pub fn load(store: &Store) -> Result<Catalog, StoreError> {
         let catalog = Catalog::default();
         for id in store.object_ids(ObjectKind::Exemplar)? {
-            if let Some(p) = store.get_object(ObjectKind::Exemplar, &id)? {
-                match exemplar::decode_header(&p) {
-                    Ok(h) => {
-                        lock(&catalog.exemplars).insert(id, h);
-                    }
-                    Err(e) => {
-                        tracing::warn!(exemplar = %id, error = %e, "unusable exemplar skipped")
-                    }
+            let head = store.object_head(ObjectKind::Exemplar, &id, exemplar::MAX_HEAD);
+            match head.and_then(|h| h.map(|p| exemplar::decode_header(&p)).transpose()) {
+                Ok(Some(h)) => {
+                    lock(&catalog.exemplars).insert(id, h);
                 }
+                Ok(None) => {}
+                Err(e) => store.quarantine(Stored::Exemplar, &id, &e)?,
             }
         }
         let mut names: BTreeMap<String, String> = BTreeMap::new();
@@ -156,9 +157,7 @@ impl Catalog {
                     lock(&catalog.dictionaries).insert(id, info);
                 }
                 Ok(None) => {}
-                Err(e) => {
-                    tracing::warn!(dictionary = %id, error = %e, "unusable dictionary skipped")
-                }
+                Err(e) => store.quarantine(Stored::Dictionary, &id, &e)?,
             }
         }
         Ok(catalog)

@@ -38,6 +38,10 @@ pub enum StoreError {
         /// Why.
         reason: String,
     },
+    /// The directory is not empty and has no `VERSION`: it is not a store (refused, so that a
+    /// mistyped `store_dir` never adopts someone else's files).
+    #[error("{0} is not empty and has no VERSION file: it is not a terrasynth store (give an empty or new directory)")]
+    NotAStore(String),
     /// The store was written by a newer, incompatible terrasynth.
     #[error("store format `{found}` is not supported (this build reads version {supported})")]
     Version {
@@ -71,6 +75,9 @@ pub enum ServiceError {
     /// The build queue is full.
     #[error("the build queue is full; retry later")]
     QueueFull,
+    /// A shared resource (the upload memory budget) is spent for now; retrying later may work.
+    #[error("{0}")]
+    Busy(String),
     /// The store failed.
     #[error(transparent)]
     Store(#[from] StoreError),

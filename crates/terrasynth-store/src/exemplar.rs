@@ -14,6 +14,9 @@ use terrasynth_core::raster::{Georef, LayeredRaster, ELEVATION};
 /// Largest accepted JSON header, bytes.
 const MAX_HEADER: usize = 1 << 20;
 
+/// Bytes at the start of a payload that always hold its header (its length and JSON).
+pub const MAX_HEAD: usize = 4 + MAX_HEADER;
+
 /// Statistics of an exemplar's elevation over its valid cells.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ExemplarStats {
@@ -73,42 +76,88 @@ pub fn stats(r: &LayeredRaster) -> Option<ExemplarStats> {
     })
 }
 
-/// The canonical payload of exemplar `name` (elevation must be the first layer and some cell
-/// valid).
-pub fn encode(name: &str, r: &LayeredRaster) -> Result<(ExemplarHeader, Vec<u8>), StoreError> {
-    let (height, width) = r.dim();
-    if r.layers.first().map(|(n, _)| n.as_str()) != Some(ELEVATION) {
-        return Err(bad("the first layer must be elevation"));
-    }
-    let stats = stats(r).ok_or_else(|| bad("no valid elevation"))?;
-    let header = ExemplarHeader {
-        name: name.to_string(),
-        width,
-        height,
-        georef: r.georef,
-        layers: r.layers.iter().map(|(n, _)| n.clone()).collect(),
-        stats,
-    };
-    let json = serde_json::to_vec(&header).map_err(|e| bad(e.to_string()))?;
-    let mut out = Vec::with_capacity(4 + json.len() + r.layers.len() * width * height * 4);
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(&json);
-    // A cell is valid when its elevation is finite and not masked out; invalid cells are NaN in
-    // every layer.
-    let elevation = &r.layers[0].1;
-    let cell_valid = |row: usize, col: usize| {
-        elevation[[row, col]].is_finite() && r.valid.as_ref().is_none_or(|m| m[[row, col]])
-    };
-    for (_, a) in &r.layers {
-        for ((row, col), &v) in a.indexed_iter() {
-            let valid = cell_valid(row, col);
-            let v = if valid { v } else { f32::NAN };
-            // One canonical NaN, so equal rasters give equal bytes.
-            let v = if v.is_nan() { f32::NAN } else { v };
-            out.extend_from_slice(&v.to_le_bytes());
+/// The canonical payload of exemplar `name`, ready to be written: its header, the header's
+/// JSON, and the payload's length.
+pub struct Encoder<'a> {
+    raster: &'a LayeredRaster,
+    /// The header.
+    pub header: ExemplarHeader,
+    json: Vec<u8>,
+}
+
+impl<'a> Encoder<'a> {
+    /// The encoder of exemplar `name` (elevation must be the first layer and some cell valid).
+    pub fn new(name: &str, r: &'a LayeredRaster) -> Result<Self, StoreError> {
+        let (height, width) = r.dim();
+        if r.layers.first().map(|(n, _)| n.as_str()) != Some(ELEVATION) {
+            return Err(bad("the first layer must be elevation"));
         }
+        let stats = stats(r).ok_or_else(|| bad("no valid elevation"))?;
+        let header = ExemplarHeader {
+            name: name.to_string(),
+            width,
+            height,
+            georef: r.georef,
+            layers: r.layers.iter().map(|(n, _)| n.clone()).collect(),
+            stats,
+        };
+        let json = serde_json::to_vec(&header).map_err(|e| bad(e.to_string()))?;
+        if json.len() > MAX_HEADER {
+            return Err(bad("exemplar header too large"));
+        }
+        Ok(Encoder {
+            raster: r,
+            header,
+            json,
+        })
     }
-    Ok((header, out))
+
+    /// Bytes of the payload.
+    pub fn len(&self) -> u64 {
+        let (h, w) = self.raster.dim();
+        4 + self.json.len() as u64 + (self.raster.layers.len() as u64) * (h as u64) * (w as u64) * 4
+    }
+
+    /// Whether the payload is empty (never: it holds at least its header).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Writes the payload to `out`, a row at a time.
+    pub fn write(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        let r = self.raster;
+        out.write_all(&(self.json.len() as u32).to_le_bytes())?;
+        out.write_all(&self.json)?;
+        // A cell is valid when its elevation is finite and not masked out; invalid cells are NaN
+        // in every layer.
+        let elevation = &r.layers[0].1;
+        let cell_valid = |row: usize, col: usize| {
+            elevation[[row, col]].is_finite() && r.valid.as_ref().is_none_or(|m| m[[row, col]])
+        };
+        let mut line = Vec::with_capacity(r.dim().1 * 4);
+        for (_, a) in &r.layers {
+            for (row, values) in a.outer_iter().enumerate() {
+                line.clear();
+                for (col, &v) in values.iter().enumerate() {
+                    let v = if cell_valid(row, col) { v } else { f32::NAN };
+                    // One canonical NaN, so equal rasters give equal bytes.
+                    let v = if v.is_nan() { f32::NAN } else { v };
+                    line.extend_from_slice(&v.to_le_bytes());
+                }
+                out.write_all(&line)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The canonical payload of exemplar `name` in memory (elevation must be the first layer and
+/// some cell valid); the store streams it with [`Encoder::write`] instead.
+pub fn encode(name: &str, r: &LayeredRaster) -> Result<(ExemplarHeader, Vec<u8>), StoreError> {
+    let e = Encoder::new(name, r)?;
+    let mut out = Vec::with_capacity(usize::try_from(e.len()).unwrap_or(0));
+    e.write(&mut out).map_err(|e| bad(e.to_string()))?;
+    Ok((e.header, out))
 }
 
 /// The header of a payload (without decoding the layers).

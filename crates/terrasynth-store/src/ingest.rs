@@ -1,8 +1,16 @@
 //! Decoding an uploaded exemplar: a GeoTIFF, 16-bit PNG or OpenEXR file, or an `elevation`
 //! raster and named layer rasters on the same grid. Everything goes through the core readers,
 //! which check the header against the limits before allocating; this module adds the
-//! width/height limit, the layer checks and the "some elevation is valid" rule. Nothing here
-//! touches the store.
+//! width/height limit, the layer checks and the "some elevation is valid" rule.
+//!
+//! Uploads arrive spooled to files ([`Spooled`], written by the server as the body arrives).
+//! Before any of them is read into memory, [`decode_spooled`] estimates from the file headers
+//! how much memory reading and decoding them will take ([`decoded_bytes`]) and reserves it, with
+//! the bodies, from the uploads' [`MemoryBudget`]; only then are the files read and decoded.
+//! Nothing here writes to the store.
+
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
 
 use terrasynth_core::names::{is_valid_name, NAME_RULE};
 use terrasynth_core::raster::{
@@ -10,7 +18,30 @@ use terrasynth_core::raster::{
     ReadLimits, ELEVATION,
 };
 
+use crate::budget::{MemoryBudget, Reservation};
 use crate::error::ServiceError;
+
+/// Memory a decoder needs beyond its sample buffers (row buffers, decompression state), bytes.
+const DECODER_OVERHEAD: u64 = 4 << 20;
+
+/// One part of an upload, spooled to a file that is removed when this is dropped.
+#[derive(Debug)]
+pub struct Spooled {
+    /// The part's name (`elevation` or a layer name; the body of a raw upload is `elevation`).
+    pub name: String,
+    /// What its `Content-Type` claims.
+    pub format: UploadFormat,
+    /// The file.
+    pub path: PathBuf,
+    /// Its length, bytes.
+    pub len: u64,
+}
+
+impl Drop for Spooled {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
 
 /// Limits of uploads.
 #[derive(Clone, Copy, Debug)]
@@ -93,6 +124,125 @@ pub fn decode_raster(
     };
     check_raster(what, &raster, limits)?;
     Ok(raster)
+}
+
+/// The memory, bytes, that reading the raster file at `path` (of `len` bytes) into memory and
+/// decoding it will take at its peak — the file's bytes plus the decoder's sample buffers, the
+/// `f32` layers and the validity mask — estimated from the file's header alone. A header that
+/// cannot be read, or that exceeds `limits`, is estimated as the file alone: the decoder then
+/// refuses it before allocating anything.
+pub fn decoded_bytes(path: &Path, len: u64, limits: &ReadLimits) -> Result<u64, ServiceError> {
+    let f = std::fs::File::open(path)
+        .map_err(|e| ServiceError::Internal(format!("reading a spooled upload: {e}")))?;
+    let mut r = BufReader::new(f);
+    let mut magic = [0u8; 4];
+    if r.read_exact(&mut magic).is_err() || r.seek(SeekFrom::Start(0)).is_err() {
+        return Ok(len);
+    }
+    let per_pixel_and_pixels = match sniff(&magic) {
+        Some(RasterFormat::GeoTiff) => tiff_estimate(r),
+        Some(RasterFormat::Png) => png_estimate(r),
+        Some(RasterFormat::Exr) => exr_estimate(r),
+        None => None,
+    };
+    Ok(match per_pixel_and_pixels {
+        Some((per_pixel, pixels)) if pixels <= limits.max_pixels => len
+            .saturating_add(per_pixel.saturating_mul(pixels))
+            .saturating_add(DECODER_OVERHEAD),
+        _ => len,
+    })
+}
+
+/// `(bytes per pixel at the peak, pixels)` of a TIFF: the decoded samples, their `f32` copy and
+/// the mask.
+fn tiff_estimate(r: impl Read + Seek) -> Option<(u64, u64)> {
+    let mut dec = tiff::decoder::Decoder::new(r).ok()?;
+    let (w, h) = dec.dimensions().ok()?;
+    let bits = match dec.colortype().ok()? {
+        tiff::ColorType::Gray(b) => u64::from(b),
+        // Refused by the reader before it decodes pixels.
+        _ => 8,
+    };
+    Some((bits.div_ceil(8) + 4 + 1, u64::from(w) * u64::from(h)))
+}
+
+/// `(bytes per pixel at the peak, pixels)` of a PNG (read from its IHDR chunk): the 16-bit
+/// samples and their `f32` copy.
+fn png_estimate(mut r: impl Read) -> Option<(u64, u64)> {
+    let mut head = [0u8; 24];
+    r.read_exact(&mut head).ok()?;
+    if &head[12..16] != b"IHDR" {
+        return None;
+    }
+    let w = u32::from_be_bytes([head[16], head[17], head[18], head[19]]);
+    let h = u32::from_be_bytes([head[20], head[21], head[22], head[23]]);
+    Some((2 + 4 + 1, u64::from(w) * u64::from(h)))
+}
+
+/// `(bytes per pixel at the peak, pixels)` of an OpenEXR file: every channel's samples and their
+/// `f32` copies, and the mask.
+fn exr_estimate(r: impl Read + Seek) -> Option<(u64, u64)> {
+    let meta = exr::meta::MetaData::read_from_buffered(r, false).ok()?;
+    let header = meta.headers.first()?;
+    let size = header.layer_size;
+    let per_pixel: u64 = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.sample_type.bytes_per_sample() as u64 + 4)
+        .sum();
+    Some((per_pixel + 1, size.width() as u64 * size.height() as u64))
+}
+
+/// Decodes a spooled upload: estimates its peak memory from the file headers, reserves it from
+/// `budget` (413 when it exceeds the whole budget, 503 when other uploads hold it), then reads
+/// and decodes each part (`elevation` first; the others are layers on its grid) and assembles
+/// the exemplar. The reservation is returned with the raster: hold it until the raster is
+/// stored.
+pub fn decode_spooled(
+    parts: &[Spooled],
+    georef: Option<Georef>,
+    limits: &UploadLimits,
+    budget: &std::sync::Arc<MemoryBudget>,
+) -> Result<(LayeredRaster, Reservation), ServiceError> {
+    let elevation_at = parts
+        .iter()
+        .position(|p| p.name == ELEVATION)
+        .ok_or_else(|| ServiceError::Invalid("the upload has no `elevation` part".into()))?;
+    let mut need = 0u64;
+    for p in parts {
+        need = need.saturating_add(decoded_bytes(&p.path, p.len, &limits.read)?);
+    }
+    let reservation = budget.reserve(need, "this upload")?;
+    let read = |p: &Spooled| {
+        std::fs::read(&p.path)
+            .map_err(|e| ServiceError::Internal(format!("reading a spooled upload: {e}")))
+    };
+    let what = |p: &Spooled| {
+        if parts.len() == 1 {
+            "the body".to_string()
+        } else {
+            format!("part `{}`", p.name)
+        }
+    };
+    let first = &parts[elevation_at];
+    let elevation = decode_raster(&what(first), &read(first)?, first.format, georef, limits)?;
+    let mut layers = Vec::new();
+    for (i, p) in parts.iter().enumerate() {
+        if i == elevation_at {
+            continue;
+        }
+        check_layer_name(&p.name)?;
+        let r = decode_raster(
+            &what(p),
+            &read(p)?,
+            p.format,
+            Some(elevation.georef),
+            limits,
+        )?;
+        layers.push((p.name.clone(), r));
+    }
+    Ok((assemble(elevation, layers, limits)?, reservation))
 }
 
 /// Checks dimensions, layer count, georeference and that some elevation is valid.

@@ -197,7 +197,7 @@ pub struct Jobs {
 }
 
 /// Lowers the calling thread's scheduling priority (Linux: per-thread nice value).
-fn lower_priority() {
+pub(crate) fn lower_priority() {
     #[cfg(unix)]
     // SAFETY: nice(2) only changes the calling thread's scheduling priority.
     unsafe {
@@ -234,7 +234,7 @@ impl Jobs {
                     }
                     records.insert(id, job);
                 }
-                Err(e) => tracing::warn!(job = %id, error = %e, "unreadable job record skipped"),
+                Err(e) => store.quarantine_job(&id, &e)?,
             }
         }
         let jobs = Jobs {

@@ -1,12 +1,20 @@
-//! The catalogue service: the rules of the admin API without HTTP. It owns the store (opened and
-//! verified once), the in-memory [`Catalog`] and the build [`Jobs`], and decides what may be
+//! The catalogue service: the rules of the admin API without HTTP. It owns the store (opened once), the in-memory [`Catalog`] and the build [`Jobs`], and decides what may be
 //! stored, built, created and deleted: an exemplar used by a queued or running build or by a
 //! stored world cannot be deleted, nor a dictionary a world uses, nor a world of the
 //! configuration; names follow the one name rule; nothing is written for a rejected request.
 //! Every method does blocking IO (fsync'd writes, deletions): call it off any async runtime.
+//!
+//! Opening the service reads no exemplar pixels: it verifies the (small) world definitions and
+//! dictionaries, describes exemplars from their headers, and verifies the exemplars' checksums on
+//! a low-priority background thread, quarantining corrupted ones (and their aliases). Exemplar
+//! pixels are verified whenever they are read, and a request that describes or uses an exemplar
+//! the background thread has not reached yet verifies it first, so nothing unverified is ever
+//! served or used.
 
 use std::collections::BTreeSet;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use terrasynth_core::dictionary::Dictionary;
 use terrasynth_core::landscape::LandscapeConfig;
@@ -21,7 +29,7 @@ use crate::jobs::{
     build_options, DictionaryRequest, Job, JobRequest, JobSettings, Jobs, SketchJob,
 };
 use crate::sketch::SketchRequest;
-use crate::store::{ObjectKind, Store};
+use crate::store::{ObjectKind, Store, Stored};
 use crate::worlds::{check_name, WorldDefaults, WorldDefinition, WorldRequest};
 
 /// Most exemplars one build may read.
@@ -60,7 +68,42 @@ pub struct Catalogue {
     /// Names of the configured worlds (read-only, and shadowing stored worlds of the same name).
     configured: BTreeSet<String>,
     /// Serialises the operations that check "in use" and then change the store.
-    changes: Mutex<()>,
+    changes: Arc<Mutex<()>>,
+    /// Whether the background verification of the exemplars has finished.
+    verified: Arc<AtomicBool>,
+    /// Exemplars whose checksum has been verified since start (or that were stored since).
+    checked: Arc<Mutex<BTreeSet<String>>>,
+}
+
+/// Verifies exemplar `id` unless it was already checked: a corrupted one is quarantined (file
+/// and aliases) and forgotten. `true` when the exemplar is usable.
+fn check_exemplar(
+    store: &Store,
+    catalog: &Catalog,
+    changes: &Mutex<()>,
+    checked: &Mutex<BTreeSet<String>>,
+    id: &str,
+) -> bool {
+    if lock(checked).contains(id) {
+        return true;
+    }
+    match store.verify(Stored::Exemplar, id) {
+        Ok(true) => {
+            lock(checked).insert(id.to_string());
+            true
+        }
+        Ok(false) => false,
+        Err(e) => {
+            let _changes = lock(changes);
+            if catalog.has_exemplar(id) {
+                catalog.remove_exemplar(id);
+                if let Err(q) = store.quarantine(Stored::Exemplar, id, &e) {
+                    tracing::error!(exemplar = %id, error = %q, "store: cannot quarantine a corrupted exemplar");
+                }
+            }
+            false
+        }
+    }
 }
 
 impl Catalogue {
@@ -72,6 +115,11 @@ impl Catalogue {
         defaults: WorldDefaults,
         configured: BTreeSet<String>,
     ) -> Result<Catalogue, ServiceError> {
+        for id in store.ids(Stored::World)? {
+            if let Err(e) = store.verify(Stored::World, &id) {
+                store.quarantine(Stored::World, &id, &e)?;
+            }
+        }
         let catalog = Arc::new(Catalog::load(&store)?);
         let jobs = Jobs::start(
             store.clone(),
@@ -79,14 +127,54 @@ impl Catalogue {
             Arc::new(defaults.landscape.clone()),
             jobs,
         )?;
-        Ok(Catalogue {
+        let catalogue = Catalogue {
             store,
             catalog,
             jobs,
             defaults,
             configured,
-            changes: Mutex::new(()),
-        })
+            changes: Arc::new(Mutex::new(())),
+            verified: Arc::new(AtomicBool::new(false)),
+            checked: Arc::new(Mutex::new(BTreeSet::new())),
+        };
+        catalogue.verify_in_background()?;
+        Ok(catalogue)
+    }
+
+    /// Starts the low-priority thread that verifies every exemplar's checksum, quarantining
+    /// corrupted ones (file and aliases) and forgetting them.
+    fn verify_in_background(&self) -> Result<(), ServiceError> {
+        let ids: Vec<String> = self.catalog.exemplars().into_iter().map(|e| e.id).collect();
+        let (store, catalog) = (self.store.clone(), self.catalog.clone());
+        let (changes, verified) = (self.changes.clone(), self.verified.clone());
+        let checked = self.checked.clone();
+        std::thread::Builder::new()
+            .name("store-verify".into())
+            .spawn(move || {
+                crate::jobs::lower_priority();
+                let start = Instant::now();
+                let mut bad = 0usize;
+                for id in &ids {
+                    if !check_exemplar(&store, &catalog, &changes, &checked, id) {
+                        bad += 1;
+                    }
+                }
+                verified.store(true, Ordering::Release);
+                tracing::info!(
+                    exemplars = ids.len(),
+                    quarantined = bad,
+                    seconds = start.elapsed().as_secs_f64(),
+                    "store: exemplars verified"
+                );
+            })
+            .map_err(|e| ServiceError::Internal(format!("verification thread: {e}")))?;
+        Ok(())
+    }
+
+    /// Whether the background verification of the exemplars (started by
+    /// [`Catalogue::open`]) has finished.
+    pub fn verification_finished(&self) -> bool {
+        self.verified.load(Ordering::Acquire)
     }
 
     /// The store.
@@ -106,22 +194,46 @@ impl Catalogue {
         raster: &LayeredRaster,
     ) -> Result<ExemplarInfo, ServiceError> {
         check_name("exemplar name", name)?;
-        let (header, payload) = exemplar::encode(name, raster)?;
-        let id = self.store.put_object(ObjectKind::Exemplar, &payload)?;
+        // Streamed to the store: the payload is never assembled in memory.
+        let encoder = exemplar::Encoder::new(name, raster)?;
+        let id = self
+            .store
+            .put_object_streamed(ObjectKind::Exemplar, encoder.len(), |w| encoder.write(w))?;
+        let header = encoder.header;
         self.store.set_alias(&format!("exemplar.{name}"), &id)?;
+        lock(&self.checked).insert(id.clone());
         let info = exemplar_info(&id, &header);
         self.catalog.add_exemplar(&id, header);
         tracing::info!(exemplar = %id, name = %name, "exemplar stored");
         Ok(info)
     }
 
-    /// Every exemplar.
+    /// Verifies exemplar `id` now if the background verification has not reached it yet (an
+    /// unverified exemplar is never described or used); `false` when it is absent or corrupted.
+    fn ensure_checked(&self, id: &str) -> bool {
+        if self.catalog.has_exemplar(id)
+            && check_exemplar(&self.store, &self.catalog, &self.changes, &self.checked, id)
+        {
+            return true;
+        }
+        // Not usable: if another thread is quarantining it (holding `changes`), wait until its
+        // file and aliases are gone too, so that nobody sees an alias of an exemplar that is
+        // not described any more.
+        drop(lock(&self.changes));
+        false
+    }
+
+    /// Every exemplar (each verified first, if the background verification has not yet).
     pub fn exemplars(&self) -> Vec<ExemplarInfo> {
+        for e in self.catalog.exemplars() {
+            self.ensure_checked(&e.id);
+        }
         self.catalog.exemplars()
     }
 
-    /// Exemplar `id`.
+    /// Exemplar `id` (verified first, if the background verification has not yet).
     pub fn exemplar(&self, id: &str) -> Result<ExemplarInfo, ServiceError> {
+        self.ensure_checked(id);
         self.catalog
             .exemplar(id)
             .map(|h| exemplar_info(id, &h))
@@ -167,17 +279,45 @@ impl Catalogue {
                 "give 1–{MAX_BUILD_EXEMPLARS} exemplar ids"
             )));
         }
-        if let Some(e) = request
-            .exemplars
-            .iter()
-            .find(|e| !self.catalog.has_exemplar(e))
-        {
+        if let Some(e) = request.exemplars.iter().find(|e| !self.ensure_checked(e)) {
             return Err(ServiceError::Invalid(format!("unknown exemplar `{e}`")));
         }
         build_options(&request)?;
+        if let Some(weights) = &request.weights {
+            let known = self.weight_names(&request);
+            if let Some(bad) = weights.keys().find(|k| !known.contains(*k)) {
+                return Err(ServiceError::Invalid(format!(
+                    "unknown weight `{bad}`: a weight names `elevation`, `altitude`, `slope` or a \
+                     layer the dictionary will carry ({})",
+                    known.iter().cloned().collect::<Vec<_>>().join(", ")
+                )));
+            }
+        }
         let job = self.jobs.submit(request)?;
         tracing::info!(job = %job.id, "dictionary job queued");
         Ok(job)
+    }
+
+    /// The names a build request's weights may use: the terms `elevation`, `altitude` and
+    /// `slope`, and the layers the dictionary will carry — the derived `log_area` and
+    /// `northness`, the species (the request's or the defaults'), and the exemplars' own layers.
+    fn weight_names(&self, request: &DictionaryRequest) -> BTreeSet<String> {
+        use terrasynth_core::dictionary::derive::{LOG_AREA, NORTHNESS};
+        let mut known: BTreeSet<String> = ["elevation", "altitude", "slope", LOG_AREA, NORTHNESS]
+            .into_iter()
+            .map(String::from)
+            .collect();
+        let species = request
+            .species
+            .as_deref()
+            .unwrap_or(&self.defaults.landscape.species);
+        known.extend(species.iter().map(|s| s.name.clone()));
+        for e in &request.exemplars {
+            if let Some(h) = self.catalog.exemplar(e) {
+                known.extend(h.layers.iter().skip(1).cloned());
+            }
+        }
+        known
     }
 
     /// Every job, oldest first.

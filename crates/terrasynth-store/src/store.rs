@@ -1,7 +1,11 @@
 //! The store itself: a directory of content-addressed objects, aliases and job records with
-//! atomic writes, verified on open (see the crate documentation for the layout).
+//! atomic writes (see the crate documentation for the layout). Opening it is cheap: it checks
+//! the layout version (and refuses a non-empty directory that is not a store), removes leftovers
+//! of interrupted writes, aliases whose object is gone and world objects no alias names. Objects
+//! are verified against their checksum whenever they are read, and [`Store::verify`] checks one
+//! without keeping it in memory (the catalogue runs it in the background after start).
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use terrasynth_core::dictionary::{self, Dictionary, DictionaryError};
@@ -44,7 +48,70 @@ impl ObjectKind {
     }
 }
 
-const SUBDIRS: [&str; 5] = ["dictionaries", "aliases", "exemplars", "worlds", "jobs"];
+/// The kinds of stored things that have an id and can be verified and quarantined.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Stored {
+    /// A dictionary (`dictionaries/{id}.dict`).
+    Dictionary,
+    /// An exemplar (`exemplars/{id}.obj`).
+    Exemplar,
+    /// A world definition (`worlds/{id}.obj`).
+    World,
+}
+
+impl Stored {
+    /// Every kind, in the order start-up verifies them.
+    pub const ALL: [Stored; 3] = [Stored::World, Stored::Dictionary, Stored::Exemplar];
+
+    fn dir(self) -> &'static str {
+        match self {
+            Stored::Dictionary => "dictionaries",
+            Stored::Exemplar => "exemplars",
+            Stored::World => "worlds",
+        }
+    }
+
+    fn ext(self) -> &'static str {
+        match self {
+            Stored::Dictionary => ".dict",
+            Stored::Exemplar | Stored::World => ".obj",
+        }
+    }
+
+    /// The kind an alias names by its prefix (`exemplar.`, `dictionary.` and `world-`, `world.`),
+    /// if it is one of ours.
+    pub fn of_alias(alias: &str) -> Option<Stored> {
+        if alias.starts_with("exemplar.") {
+            Some(Stored::Exemplar)
+        } else if alias.starts_with("dictionary.") || alias.starts_with("world-") {
+            Some(Stored::Dictionary)
+        } else if alias.starts_with("world.") {
+            Some(Stored::World)
+        } else {
+            None
+        }
+    }
+}
+
+const SUBDIRS: [&str; 6] = [
+    "dictionaries",
+    "aliases",
+    "exemplars",
+    "worlds",
+    "jobs",
+    "uploads",
+];
+
+/// Bytes read at a time when verifying an object.
+const VERIFY_CHUNK: usize = 1 << 20;
+
+/// A temporary file path beside `path` (same directory, so that a rename is atomic), named so
+/// that opening the store removes it if it is left behind.
+fn temp_beside(dir: &Path, name: &str) -> PathBuf {
+    static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let seq = SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    dir.join(format!("{TMP_PREFIX}{name}-{}-{seq}", std::process::id()))
+}
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StoreError + '_ {
     move |source| StoreError::Io {
@@ -64,9 +131,7 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "object".into());
-    static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let seq = SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = dir.join(format!("{TMP_PREFIX}{name}-{}-{seq}", std::process::id()));
+    let tmp = temp_beside(dir, &name);
     let mut f = std::fs::File::create(&tmp).map_err(io(&tmp))?;
     f.write_all(bytes).map_err(io(&tmp))?;
     f.sync_all().map_err(io(&tmp))?;
@@ -119,9 +184,10 @@ pub struct Store {
 }
 
 impl Store {
-    /// Opens (creating if needed) the store at `dir`: checks its format version, removes
-    /// leftovers of interrupted writes, and verifies every object, moving corrupted ones to
-    /// `corrupt/` with a warning.
+    /// Opens (creating if needed) the store at `dir`: checks its format version (a non-empty
+    /// directory without `VERSION` is not a store and is refused), removes leftovers of
+    /// interrupted writes, aliases whose object is gone and world objects no alias names. It
+    /// reads no object: objects are verified when read, and by [`Store::verify`].
     pub fn open(dir: &Path) -> Result<Store, StoreError> {
         let store = Store {
             dir: dir.to_path_buf(),
@@ -138,6 +204,10 @@ impl Store {
                 })
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                let mut entries = std::fs::read_dir(dir).map_err(io(dir))?;
+                if entries.next().is_some() {
+                    return Err(StoreError::NotAStore(dir.display().to_string()));
+                }
                 write_atomically(&version_path, format!("{want}\n").as_bytes())?
             }
             Err(e) => return Err(io(&version_path)(e)),
@@ -153,36 +223,174 @@ impl Store {
                 }
             }
         }
-        store.verify_all()?;
+        store.remove_dangling_aliases()?;
+        store.remove_orphaned_worlds()?;
         Ok(store)
     }
 
-    /// Verifies every object; corrupted ones are moved to `corrupt/`.
-    fn verify_all(&self) -> Result<(), StoreError> {
-        for id in self.list_ids("dictionaries", ".dict")? {
-            if let Err(e) = self.get_dictionary(&id) {
-                self.quarantine("dictionaries", &format!("{id}.dict"), &e)?;
-            }
-        }
-        for kind in [ObjectKind::Exemplar, ObjectKind::World] {
-            for id in self.list_ids(kind.dir(), ".obj")? {
-                if let Err(e) = self.get_object(kind, &id) {
-                    self.quarantine(kind.dir(), &format!("{id}.obj"), &e)?;
-                }
+    fn path_of(&self, kind: Stored, id: &str) -> Result<PathBuf, StoreError> {
+        Ok(self
+            .dir
+            .join(kind.dir())
+            .join(format!("{}{}", safe_name(id)?, kind.ext())))
+    }
+
+    /// Removes the aliases of our kinds whose object does not exist (removed, quarantined, or
+    /// never written because a process died in between).
+    fn remove_dangling_aliases(&self) -> Result<(), StoreError> {
+        for (alias, id) in self.aliases("")? {
+            let Some(kind) = Stored::of_alias(&alias) else {
+                continue;
+            };
+            let exists = self.path_of(kind, &id).map(|p| p.exists()).unwrap_or(false);
+            if !exists {
+                tracing::warn!(alias = %alias, id = %id, "store: alias of a missing object removed");
+                self.remove_alias(&alias)?;
             }
         }
         Ok(())
     }
 
-    fn quarantine(&self, sub: &str, file: &str, why: &StoreError) -> Result<(), StoreError> {
-        tracing::warn!(object = %format!("{sub}/{file}"), error = %why, "store: corrupted object skipped (moved to corrupt/)");
+    /// Removes world definitions no `world.` alias names (left by a process that died between
+    /// writing the definition and its alias, or by a deletion that died half-way).
+    fn remove_orphaned_worlds(&self) -> Result<(), StoreError> {
+        let named: std::collections::BTreeSet<String> = self
+            .aliases("world.")?
+            .into_iter()
+            .map(|(_, id)| id)
+            .collect();
+        for id in self.ids(Stored::World)? {
+            if !named.contains(&id) {
+                tracing::warn!(world = %id, "store: orphaned world definition removed");
+                remove_durably(&self.path_of(Stored::World, &id)?)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Ids of the stored objects of `kind`, sorted.
+    pub fn ids(&self, kind: Stored) -> Result<Vec<String>, StoreError> {
+        self.list_ids(kind.dir(), kind.ext())
+    }
+
+    /// Verifies object `id` of `kind` against its checksum (and its id), reading it in chunks so
+    /// that an object of any size is checked in constant memory; `Ok(false)` when it is absent.
+    pub fn verify(&self, kind: Stored, id: &str) -> Result<bool, StoreError> {
+        match kind {
+            Stored::Dictionary => self.get_dictionary(id).map(|d| d.is_some()),
+            Stored::Exemplar | Stored::World => {
+                let okind = if kind == Stored::World {
+                    ObjectKind::World
+                } else {
+                    ObjectKind::Exemplar
+                };
+                let path = self.path_of(kind, id)?;
+                let f = match std::fs::File::open(&path) {
+                    Ok(f) => f,
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
+                    Err(e) => return Err(io(&path)(e)),
+                };
+                let len = f.metadata().map_err(io(&path))?.len();
+                object::verify_stream(
+                    okind,
+                    std::io::BufReader::with_capacity(VERIFY_CHUNK, f),
+                    len,
+                    id,
+                )?;
+                Ok(true)
+            }
+        }
+    }
+
+    /// Moves object `id` of `kind` to `corrupt/` (logging `why`) and removes every alias naming
+    /// it, so that nothing points at an object that is not served.
+    pub fn quarantine(&self, kind: Stored, id: &str, why: &StoreError) -> Result<(), StoreError> {
+        let file = format!("{}{}", safe_name(id)?, kind.ext());
+        self.quarantine_file(kind.dir(), &file, why)?;
+        for (alias, target) in self.aliases("")? {
+            if target == id {
+                tracing::warn!(alias = %alias, "store: alias of a quarantined object removed");
+                self.remove_alias(&alias)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn quarantine_file(
+        &self,
+        sub: &str,
+        file: &str,
+        why: &dyn std::fmt::Display,
+    ) -> Result<(), StoreError> {
+        tracing::warn!(object = %format!("{sub}/{file}"), error = %why, "store: unusable file moved to corrupt/");
         let dst_dir = self.dir.join("corrupt");
         std::fs::create_dir_all(&dst_dir).map_err(io(&dst_dir))?;
         let src = self.dir.join(sub).join(file);
         let dst = dst_dir.join(format!("{sub}-{file}"));
-        std::fs::rename(&src, &dst).map_err(io(&src))?;
+        match std::fs::rename(&src, &dst) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+            Err(e) => return Err(io(&src)(e)),
+        }
         sync_dir(&self.dir.join(sub));
         Ok(())
+    }
+
+    /// Moves the record of job `id` to `corrupt/` (it cannot be read or parsed).
+    pub fn quarantine_job(&self, id: &str, why: &dyn std::fmt::Display) -> Result<(), StoreError> {
+        self.quarantine_file("jobs", &format!("{}.json", safe_name(id)?), why)
+    }
+
+    /// A new temporary file for an upload body arriving, in `uploads/` (removed by whoever
+    /// created it once done, or when the store is next opened).
+    pub fn spool_file(&self) -> Result<(std::fs::File, PathBuf), StoreError> {
+        let path = temp_beside(&self.dir.join("uploads"), "upload");
+        let f = std::fs::File::create_new(&path).map_err(io(&path))?;
+        Ok((f, path))
+    }
+
+    /// Stores an object of `kind` whose payload of `len` bytes `fill` writes, streaming it to
+    /// its file (hashing as it goes) instead of assembling it in memory; returns its id. Storing
+    /// an object that exists is a no-op.
+    pub fn put_object_streamed(
+        &self,
+        kind: ObjectKind,
+        len: u64,
+        fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> Result<String, StoreError> {
+        let dir = self.dir.join(kind.dir());
+        let tmp = temp_beside(&dir, "object");
+        let written = (|| -> Result<String, StoreError> {
+            let f = std::fs::File::create_new(&tmp).map_err(io(&tmp))?;
+            let mut sealer = object::SealWriter::new(
+                kind,
+                len,
+                std::io::BufWriter::with_capacity(VERIFY_CHUNK, f),
+            )
+            .map_err(io(&tmp))?;
+            fill(&mut sealer).map_err(io(&tmp))?;
+            let (buffered, id) = sealer.finish().map_err(io(&tmp))?;
+            let f = buffered
+                .into_inner()
+                .map_err(|e| io(&tmp)(e.into_error()))?;
+            f.sync_all().map_err(io(&tmp))?;
+            Ok(id)
+        })();
+        let id = match written {
+            Ok(id) => id,
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(e);
+            }
+        };
+        let path = self.object_path(kind, &id)?;
+        if path.exists() {
+            remove_durably(&tmp)?;
+        } else {
+            std::fs::rename(&tmp, &path).map_err(io(&path))?;
+            sync_dir(&dir);
+        }
+        Ok(id)
     }
 
     /// Ids of the files `{id}{ext}` of a subdirectory, sorted.
@@ -325,6 +533,30 @@ impl Store {
         object::open(kind, &bytes, id).map(Some)
     }
 
+    /// The first (at most `max`) payload bytes of object `id` of `kind`, after checking the
+    /// envelope's magic, kind, version and length against the file — but not its checksum (see
+    /// [`Store::verify`]): for reading a header without reading a large payload. `Ok(None)` when
+    /// absent.
+    pub fn object_head(
+        &self,
+        kind: ObjectKind,
+        id: &str,
+        max: usize,
+    ) -> Result<Option<Vec<u8>>, StoreError> {
+        let path = self.object_path(kind, id)?;
+        let f = match std::fs::File::open(&path) {
+            Ok(f) => f,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(io(&path)(e)),
+        };
+        let len = f.metadata().map_err(io(&path))?.len();
+        let mut head = Vec::new();
+        f.take(object::PREFIX as u64 + max as u64)
+            .read_to_end(&mut head)
+            .map_err(io(&path))?;
+        object::open_head(kind, &head, len, id).map(Some)
+    }
+
     /// Ids of the stored objects of `kind`, sorted.
     pub fn object_ids(&self, kind: ObjectKind) -> Result<Vec<String>, StoreError> {
         self.list_ids(kind.dir(), ".obj")
@@ -344,16 +576,15 @@ impl Store {
         write_atomically(&path, json)
     }
 
-    /// Every job record `(id, bytes)`, sorted by id.
+    /// Every job record `(id, bytes)`, sorted by id; a record that cannot be read is moved to
+    /// `corrupt/`.
     pub fn jobs(&self) -> Result<Vec<(String, Vec<u8>)>, StoreError> {
         let mut out = Vec::new();
         for id in self.list_ids("jobs", ".json")? {
             let p = self.dir.join("jobs").join(format!("{id}.json"));
             match std::fs::read(&p) {
                 Ok(b) => out.push((id, b)),
-                Err(e) => {
-                    tracing::warn!(path = %p.display(), error = %e, "store: unreadable job record")
-                }
+                Err(e) => self.quarantine_job(&id, &e)?,
             }
         }
         Ok(out)
@@ -385,43 +616,99 @@ mod tests {
 mod object_tests {
     use super::*;
 
-    #[test]
-    fn objects_round_trip_and_corruption_is_quarantined_on_open() {
-        let dir = tempfile::tempdir().unwrap();
-        let store = Store::open(dir.path()).unwrap();
-        let a = store.put_object(ObjectKind::World, b"{\"a\":1}").unwrap();
-        let b = store.put_object(ObjectKind::World, b"{\"b\":2}").unwrap();
-        assert_eq!(
-            store.put_object(ObjectKind::World, b"{\"a\":1}").unwrap(),
-            a
-        );
-        assert_eq!(
-            store.get_object(ObjectKind::World, &a).unwrap().unwrap(),
-            b"{\"a\":1}"
-        );
-        assert!(store
-            .get_object(ObjectKind::Exemplar, &a)
-            .unwrap()
-            .is_none());
-        // Flip one payload byte of b: reopening moves it away and keeps a.
-        let pb = dir.path().join("worlds").join(format!("{b}.obj"));
-        let mut bytes = std::fs::read(&pb).unwrap();
+    /// Flips one payload byte of object `id` of `kind`.
+    fn corrupt(dir: &Path, kind: Stored, id: &str) {
+        let p = dir.join(kind.dir()).join(format!("{id}{}", kind.ext()));
+        let mut bytes = std::fs::read(&p).unwrap();
         let n = bytes.len();
         bytes[n - 40] ^= 1;
-        std::fs::write(&pb, bytes).unwrap();
-        assert!(store.get_object(ObjectKind::World, &b).is_err());
+        std::fs::write(&p, bytes).unwrap();
+    }
+
+    #[test]
+    fn objects_round_trip_and_corruption_is_quarantined_with_its_aliases() {
+        let dir = tempfile::tempdir().unwrap();
         let store = Store::open(dir.path()).unwrap();
+        let a = store
+            .put_object(ObjectKind::Exemplar, b"{\"a\":1}")
+            .unwrap();
+        let b = store
+            .put_object(ObjectKind::Exemplar, b"{\"b\":2}")
+            .unwrap();
         assert_eq!(
-            store.object_ids(ObjectKind::World).unwrap(),
+            store
+                .put_object(ObjectKind::Exemplar, b"{\"a\":1}")
+                .unwrap(),
+            a
+        );
+        let streamed = store
+            .put_object_streamed(ObjectKind::Exemplar, 7, |w| w.write_all(b"{\"a\":1}"))
+            .unwrap();
+        assert_eq!(streamed, a, "streaming and sealing in memory agree");
+        assert_eq!(
+            store.get_object(ObjectKind::Exemplar, &a).unwrap().unwrap(),
+            b"{\"a\":1}"
+        );
+        assert!(store.get_object(ObjectKind::World, &a).unwrap().is_none());
+        assert!(store.verify(Stored::Exemplar, &a).unwrap());
+        store.set_alias("exemplar.bee", &b).unwrap();
+        // Flip one payload byte of b: reading or verifying it fails; quarantining moves it away
+        // with its alias and keeps a.
+        corrupt(dir.path(), Stored::Exemplar, &b);
+        assert!(store.get_object(ObjectKind::Exemplar, &b).is_err());
+        let e = store.verify(Stored::Exemplar, &b).unwrap_err();
+        store.quarantine(Stored::Exemplar, &b, &e).unwrap();
+        assert_eq!(
+            store.object_ids(ObjectKind::Exemplar).unwrap(),
             vec![a.clone()]
         );
+        assert_eq!(store.alias("exemplar.bee").unwrap(), None);
         assert_eq!(dir.path().join("corrupt").read_dir().unwrap().count(), 1);
-        assert!(store.delete_object(ObjectKind::World, &a).unwrap());
-        assert!(!store.delete_object(ObjectKind::World, &a).unwrap());
+        assert!(store.delete_object(ObjectKind::Exemplar, &a).unwrap());
+        assert!(!store.delete_object(ObjectKind::Exemplar, &a).unwrap());
         std::fs::write(dir.path().join("VERSION"), "terrasynth-store 99").unwrap();
         assert!(matches!(
             Store::open(dir.path()),
             Err(StoreError::Version { .. })
         ));
+    }
+
+    #[test]
+    fn opening_repairs_aliases_and_orphans_and_refuses_foreign_directories() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        let named = store.put_object(ObjectKind::World, b"{\"w\":1}").unwrap();
+        let orphan = store.put_object(ObjectKind::World, b"{\"w\":2}").unwrap();
+        store.set_alias("world.named", &named).unwrap();
+        store.set_alias("exemplar.gone", &"ab".repeat(32)).unwrap();
+        store
+            .set_alias("dictionary.gone", &"cd".repeat(32))
+            .unwrap();
+        store
+            .set_alias("world-configured-x", &"ef".repeat(32))
+            .unwrap();
+        let leftover = dir.path().join("uploads").join(".tmp-upload-1-1");
+        std::fs::write(&leftover, b"half a body").unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        assert_eq!(store.ids(Stored::World).unwrap(), vec![named.clone()]);
+        assert!(!dir
+            .path()
+            .join("worlds")
+            .join(format!("{orphan}.obj"))
+            .exists());
+        assert_eq!(
+            store.aliases("").unwrap(),
+            vec![("world.named".to_string(), named)]
+        );
+        assert!(!leftover.exists());
+        // A directory holding anything but a store is refused, and left as it was.
+        let foreign = tempfile::tempdir().unwrap();
+        std::fs::write(foreign.path().join("notes.txt"), b"mine").unwrap();
+        assert!(matches!(
+            Store::open(foreign.path()),
+            Err(StoreError::NotAStore(_))
+        ));
+        assert!(!foreign.path().join("VERSION").exists());
+        assert_eq!(foreign.path().read_dir().unwrap().count(), 1);
     }
 }

@@ -12,6 +12,7 @@ use terrasynth_core::analysis;
 use terrasynth_core::landscape::{vegetation, LandscapeConfig};
 use terrasynth_core::synth::Window;
 
+use crate::cancel::uncancellable;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
 
@@ -73,10 +74,11 @@ impl WholeWorld {
         }
     }
 
-    /// The layers, computing them on first use.
+    /// The layers, computing them on first use. The computation is never cancelled (its result
+    /// is kept for ever, so an abandoned request must not leave a cancellation in its place).
     pub fn get(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
         self.layers
-            .get_or_init(|| compute(elevation, &self.landscape).map(Arc::new))
+            .get_or_init(|| uncancellable(|| compute(elevation, &self.landscape).map(Arc::new)))
             .clone()
     }
 }

@@ -65,4 +65,7 @@ pub enum TileError {
     /// Tile bytes could not be read back.
     #[error("cannot decode tile: {0}")]
     Decode(String),
+    /// Nobody waits for the computation any more (its requests were abandoned): it stopped.
+    #[error("the computation was abandoned: nobody waits for it any more")]
+    Cancelled,
 }

@@ -5,13 +5,15 @@
 //! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
 //! ([`world`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
-//! TileJSON ([`tilejson`]) and styles ([`style`]).
+//! TileJSON ([`tilejson`]) and styles ([`style`]). Computations are coalesced and cancelled
+//! cooperatively when nobody waits for them any more ([`cancel`]).
 //!
 //! Everything here is deterministic: the bytes of a tile depend only on the world and the
 //! request, never on the clock, a global RNG, thread count, CPU features or cache state. No
 //! sockets and no HTTP types: the server translates HTTP into these calls.
 
 pub mod base_layers;
+pub mod cancel;
 pub mod drainage;
 pub mod elevation;
 pub mod encode;
@@ -29,6 +31,7 @@ pub mod tilejson;
 pub mod vegetation;
 pub mod world;
 
+pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
     encode_mapbox_png, encode_rgba_png, encode_terrarium_png, NAN_FILL_HEIGHT_M,
@@ -41,7 +44,9 @@ pub use mercator::{
     MAX_LATITUDE, MAX_SUPPORTED_ZOOM, TILE_SIZE,
 };
 pub use render::render;
-pub use request::{check_against_world, etag, parse_request, RequestError, TileKind, TileRequest};
+pub use request::{
+    check_against_world, etag, parse_request, query_map, RequestError, TileKind, TileRequest,
+};
 pub use resample::mercator_window_from_grid;
 pub use tilejson::{TerrainEncoding, TileJson, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
-pub use world::{World, WorldParts, WorldStats};
+pub use world::{MemoryPlan, World, WorldParts, WorldStats};

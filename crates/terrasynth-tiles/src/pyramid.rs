@@ -1,5 +1,6 @@
 //! The one level pyramid every layer uses: level tiles cached per `(zoom, column, row)` and
-//! computed once even under concurrent requests ([`LevelCache`]), windows of a zoom's pixel plane
+//! computed once even under concurrent requests ([`LevelCache`]; every lookup that misses is a
+//! cancellation point, see [`crate::cancel`]), windows of a zoom's pixel plane
 //! assembled from those tiles ([`assemble`]), and overview tiles reduced from their four children
 //! ([`overview`]).
 //!
@@ -17,6 +18,7 @@ use ndarray::{s, Array2};
 use terrasynth_core::raster::reduce2x2;
 use terrasynth_core::synth::Window;
 
+use crate::cancel::Flights;
 use crate::error::TileError;
 use crate::mercator::TILE_SIZE;
 
@@ -86,11 +88,14 @@ pub struct CacheStats {
     pub hits: AtomicU64,
     /// Tiles that had to be computed.
     pub misses: AtomicU64,
+    /// Computations abandoned because nobody waited for them any more.
+    pub cancelled: AtomicU64,
 }
 
 /// The level tiles of one layer of one world, weighed in bytes.
 pub struct LevelCache<T: LevelTile> {
     cache: Cache<TileKey, Arc<T>>,
+    flights: Flights<TileKey, Arc<T>>,
     stats: CacheStats,
 }
 
@@ -110,12 +115,16 @@ impl<T: LevelTile> LevelCache<T> {
                 .weigher(|_, v: &Arc<T>| u32::try_from(v.bytes()).unwrap_or(u32::MAX))
                 .max_capacity(capacity_bytes)
                 .build(),
+            flights: Flights::new(),
             stats: CacheStats::default(),
         }
     }
 
     /// Tile `key` from the cache, or computed by `compute` (once, even when several threads ask
-    /// for it at the same time; the others wait for that computation).
+    /// for it at the same time; the others wait for that computation). A miss is a cancellation
+    /// point: when everyone who wants this tile has left, it fails with
+    /// [`TileError::Cancelled`] instead of computing it, and a computation abandoned half-way
+    /// caches nothing.
     pub fn get_or_compute(
         &self,
         key: TileKey,
@@ -125,12 +134,22 @@ impl<T: LevelTile> LevelCache<T> {
             self.stats.hits.fetch_add(1, Ordering::Relaxed);
             return Ok(t);
         }
-        self.cache
-            .try_get_with(key, || {
+        let r = self.flights.run(
+            key,
+            || {
+                // Another flight may have finished it between the lookup and now.
+                if let Some(t) = self.cache.get(&key) {
+                    return Ok(t);
+                }
                 self.stats.misses.fetch_add(1, Ordering::Relaxed);
                 compute().map(Arc::new)
-            })
-            .map_err(|e: Arc<TileError>| (*e).clone())
+            },
+            |t| self.cache.insert(key, t.clone()),
+        );
+        if matches!(r, Err(TileError::Cancelled)) {
+            self.stats.cancelled.fetch_add(1, Ordering::Relaxed);
+        }
+        r
     }
 
     /// Bytes currently held.

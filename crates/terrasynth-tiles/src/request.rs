@@ -1,7 +1,13 @@
 //! Tile requests: the layer, format and parameters a tile URL asks for, parsed and validated
 //! ([`parse_request`]), checked against a world ([`check_against_world`]), and the strong ETag of
-//! the bytes they produce ([`etag`]). No HTTP types: the server hands over path segments and
-//! query pairs and maps [`RequestError`] to 400 and 404.
+//! the bytes they produce ([`etag`]). No HTTP types: the server hands over the raw (still
+//! percent-encoded) path segments and the query pairs ([`query_map`]) and maps [`RequestError`]
+//! to 400 and 404.
+//!
+//! Parsing is strict, so that a tile has exactly one URL (one cache key for every CDN and
+//! browser): coordinates are canonical decimal integers (no sign, no leading zeros, no
+//! percent-encoding: 400), a query key may appear once (400), and a parameter is accepted only by
+//! the layer and format it applies to (400, e.g. `encoding` on an `.exr` tile).
 
 use std::collections::HashMap;
 
@@ -98,13 +104,52 @@ fn parse_num<T: std::str::FromStr>(what: &str, v: &str) -> Result<T, RequestErro
         .map_err(|_| RequestError::BadRequest(format!("{what} `{v}` is not a valid number")))
 }
 
+/// A tile coordinate: a canonical decimal integer (ASCII digits, no sign, no leading zero, no
+/// percent-encoding) that fits `T`; anything else is a 400.
+fn parse_coordinate<T: std::str::FromStr>(what: &str, raw: &str) -> Result<T, RequestError> {
+    let canonical = !raw.is_empty()
+        && raw.bytes().all(|b| b.is_ascii_digit())
+        && (raw == "0" || !raw.starts_with('0'));
+    if !canonical {
+        return Err(RequestError::BadRequest(format!(
+            "{what} `{raw}` is not a canonical tile coordinate: write it as a decimal integer \
+             without sign, leading zeros or percent-encoding"
+        )));
+    }
+    raw.parse()
+        .map_err(|_| RequestError::BadRequest(format!("{what} `{raw}` is out of range")))
+}
+
+/// The query pairs as a map: 400 when a key appears more than once (a repeated key would
+/// otherwise silently take one of its values).
+pub fn query_map(pairs: &[(String, String)]) -> Result<HashMap<String, String>, RequestError> {
+    let mut map = HashMap::with_capacity(pairs.len());
+    for (k, v) in pairs {
+        if map.insert(k.clone(), v.clone()).is_some() {
+            return Err(RequestError::BadRequest(format!(
+                "query parameter `{k}` is given more than once"
+            )));
+        }
+    }
+    Ok(map)
+}
+
+/// The query parameters a layer accepts in a format.
+fn allowed_parameters(layer: &str, ext: &str) -> &'static [&'static str] {
+    match (layer, ext) {
+        ("elevation", "png") => &["encoding"],
+        ("hillshade", "png") => &["azimuth", "altitude"],
+        ("vegetation", "png") => &["set", "style"],
+        ("splat", "png") => &["set"],
+        _ => &[],
+    }
+}
+
 /// The `set` query parameter (default 0).
 fn parse_set(query: &HashMap<String, String>) -> Result<usize, RequestError> {
     match query.get("set") {
         None => Ok(0),
-        Some(v) => v.parse().map_err(|_| {
-            RequestError::BadRequest(format!("set `{v}` is not a non-negative integer"))
-        }),
+        Some(v) => parse_coordinate("set", v),
     }
 }
 
@@ -126,7 +171,10 @@ pub fn check_against_world(world: &World, req: &TileRequest) -> Result<(), Reque
     Ok(())
 }
 
-/// Parses `{layer}/{z}/{x}/{y}.{ext}` and the query into a request.
+/// Parses `{layer}/{z}/{x}/{y}.{ext}` (raw path segments: percent-encoding is not decoded, so a
+/// coordinate has one spelling) and the query into a request. Unknown layers and formats are
+/// 404; malformed or non-canonical coordinates, unknown parameters and parameters that do not
+/// apply to the layer's format are 400.
 pub fn parse_request(
     world: &str,
     layer: &str,
@@ -135,8 +183,8 @@ pub fn parse_request(
     y_ext: &str,
     query: &HashMap<String, String>,
 ) -> Result<TileRequest, RequestError> {
-    let z: u8 = parse_num("zoom", z)?;
-    let x: u32 = parse_num("x", x)?;
+    let z: u8 = parse_coordinate("zoom", z)?;
+    let x: u32 = parse_coordinate("x", x)?;
     let (stem, ext) = y_ext
         .rsplit_once('.')
         .ok_or_else(|| RequestError::NotFound(format!("`{y_ext}` has no format extension")))?;
@@ -144,19 +192,27 @@ pub fn parse_request(
         Some(y) => (y, true),
         None => (stem, false),
     };
-    let y: u32 = parse_num("y", y_str)?;
-    for key in query.keys() {
-        let allowed = matches!(
-            (layer, key.as_str()),
-            ("elevation", "encoding")
-                | ("hillshade", "azimuth" | "altitude")
-                | ("splat", "set")
-                | ("vegetation", "set" | "style")
-        );
-        if !allowed {
-            return Err(RequestError::BadRequest(format!(
-                "unknown query parameter `{key}`"
-            )));
+    let y: u32 = parse_coordinate("y", y_str)?;
+    let has_format = match (layer, ext) {
+        ("elevation", "png") => true,
+        ("elevation" | "vegetation" | "drainage", "exr")
+        | ("hillshade" | "vegetation" | "drainage" | "splat" | "color", "png") => !retina,
+        _ => false,
+    };
+    // Unknown layers and formats are 404 below, whatever the query.
+    if has_format {
+        let allowed = allowed_parameters(layer, ext);
+        let mut keys: Vec<&String> = query.keys().collect();
+        keys.sort();
+        if let Some(key) = keys.into_iter().find(|k| !allowed.contains(&k.as_str())) {
+            let applies = ["png", "exr"]
+                .iter()
+                .any(|e| allowed_parameters(layer, e).contains(&key.as_str()));
+            return Err(RequestError::BadRequest(if applies {
+                format!("query parameter `{key}` does not apply to `.{ext}` {layer} tiles")
+            } else {
+                format!("unknown query parameter `{key}`")
+            }));
         }
     }
     let kind = match (layer, ext) {
@@ -243,4 +299,110 @@ pub fn etag(world: &World, req: &TileRequest) -> String {
     let d = h.finalize();
     let hex: String = d.iter().take(16).map(|b| format!("{b:02x}")).collect();
     format!("\"{hex}\"")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn q(pairs: &[(&str, &str)]) -> HashMap<String, String> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect()
+    }
+
+    fn parse(
+        layer: &str,
+        z: &str,
+        x: &str,
+        y: &str,
+        query: &[(&str, &str)],
+    ) -> Result<TileRequest, RequestError> {
+        parse_request("w", layer, z, x, y, &q(query))
+    }
+
+    #[test]
+    fn coordinates_have_one_spelling() {
+        assert!(parse("elevation", "12", "2896", "1512.png", &[]).is_ok());
+        assert!(parse("elevation", "0", "0", "0.png", &[]).is_ok());
+        for (z, x, y) in [
+            ("+12", "2896", "1512.png"),
+            ("12", "+2896", "1512.png"),
+            ("012", "2896", "1512.png"),
+            ("12", "02896", "1512.png"),
+            ("12", "2896", "01512.png"),
+            ("12", "2896", "%31512.png"),
+            ("12", "289%36", "1512.png"),
+            ("1%32", "2896", "1512.png"),
+            ("12", "2896", "1512%402x.png"),
+            ("12", " 2896", "1512.png"),
+            ("12", "2896", "-1.png"),
+            ("", "2896", "1512.png"),
+            ("256", "0", "0.png"),
+            ("12", "4294967296", "0.png"),
+        ] {
+            let r = parse("elevation", z, x, y, &[]);
+            assert!(
+                matches!(r, Err(RequestError::BadRequest(_))),
+                "{z}/{x}/{y}: {r:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn repeated_keys_are_refused() {
+        let pairs = |v: &[(&str, &str)]| -> Vec<(String, String)> {
+            v.iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect()
+        };
+        assert_eq!(
+            query_map(&pairs(&[("a", "1"), ("b", "2")])).unwrap().len(),
+            2
+        );
+        assert!(matches!(
+            query_map(&pairs(&[("encoding", "mapbox"), ("encoding", "terrarium")])),
+            Err(RequestError::BadRequest(m)) if m.contains("more than once")
+        ));
+    }
+
+    #[test]
+    fn parameters_apply_only_to_their_format() {
+        assert!(parse("elevation", "1", "0", "0.png", &[("encoding", "mapbox")]).is_ok());
+        assert!(parse("elevation", "1", "0", "0@2x.png", &[("encoding", "mapbox")]).is_ok());
+        assert!(parse(
+            "vegetation",
+            "1",
+            "0",
+            "0.png",
+            &[("set", "0"), ("style", "overlay")]
+        )
+        .is_ok());
+        for (layer, y, key) in [
+            ("elevation", "0.exr", "encoding"),
+            ("vegetation", "0.exr", "set"),
+            ("vegetation", "0.exr", "style"),
+            ("drainage", "0.png", "set"),
+            ("splat", "0.png", "style"),
+            ("color", "0.png", "encoding"),
+        ] {
+            let r = parse(layer, "1", "0", y, &[(key, "1")]);
+            assert!(
+                matches!(r, Err(RequestError::BadRequest(_))),
+                "{layer} {y} {key}: {r:?}"
+            );
+        }
+        let r = parse("elevation", "1", "0", "0.exr", &[("encoding", "mapbox")]);
+        assert!(matches!(r, Err(RequestError::BadRequest(m)) if m.contains("does not apply")));
+        assert!(matches!(
+            parse("splat", "1", "0", "0.png", &[("set", "01")]),
+            Err(RequestError::BadRequest(_))
+        ));
+        // A format that does not exist stays a 404 whatever the query.
+        assert!(matches!(
+            parse("hillshade", "1", "0", "0.exr", &[("azimuth", "1")]),
+            Err(RequestError::NotFound(_))
+        ));
+    }
 }

@@ -70,10 +70,33 @@ pub struct WorldStats {
     pub tiles_synthesized: u64,
     /// Seconds spent computing elevation level tiles.
     pub synthesis_seconds: f64,
+    /// Level-tile computations (every layer) abandoned because nobody waited for them any more.
+    pub cancelled: u64,
+}
+
+/// How a world's memory share is spent: its whole-world landscape layers first, then its
+/// level-tile caches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryPlan {
+    /// The world's share of the cache budget, bytes.
+    pub share: u64,
+    /// Bytes of the whole-world landscape layers (drainage and vegetation of the native zoom).
+    pub whole_world: u64,
+    /// Bytes left to the level-tile caches (at least a quarter of the share).
+    pub level_caches: u64,
+}
+
+impl MemoryPlan {
+    /// Whether the share holds the whole-world layers and leaves the level caches what remains
+    /// (`false`: the world will use more memory than its share).
+    pub fn fits(&self) -> bool {
+        self.whole_world.saturating_add(self.level_caches) <= self.share
+    }
 }
 
 /// A world ready to serve tiles.
 pub struct World {
+    memory: MemoryPlan,
     name: String,
     title: String,
     attribution: String,
@@ -156,6 +179,11 @@ impl World {
             .unwrap_or_else(|| extent.middle());
         let landscape = Arc::new(parts.landscape);
         Ok(World {
+            memory: MemoryPlan {
+                share: parts.cache_bytes,
+                whole_world: base_bytes,
+                level_caches: budget,
+            },
             name: parts.name,
             title: parts.title,
             attribution: parts.attribution,
@@ -290,7 +318,20 @@ impl World {
             cache_misses: e.cache().stats().misses.load(Ordering::Relaxed),
             tiles_synthesized: e.tiles_synthesized.load(Ordering::Relaxed),
             synthesis_seconds: e.synthesis_micros.load(Ordering::Relaxed) as f64 / 1e6,
+            cancelled: [
+                &e.cache().stats().cancelled,
+                &self.drainage.cache().stats().cancelled,
+                &self.vegetation.cache().stats().cancelled,
+            ]
+            .iter()
+            .map(|c| c.load(Ordering::Relaxed))
+            .sum(),
         }
+    }
+
+    /// How the world's memory share is spent (see [`MemoryPlan::fits`]).
+    pub fn memory(&self) -> MemoryPlan {
+        self.memory
     }
 
     /// Bytes currently held by the level-tile caches (elevation, vegetation, drainage).

@@ -30,6 +30,7 @@ pub struct JobAccepted {
             headers(("Location" = String, description = "The job"))),
         (status = 400, description = "Malformed JSON", body = Problem, content_type = "application/problem+json"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body too large", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Not JSON", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Invalid parameters or unknown exemplar", body = Problem, content_type = "application/problem+json"),
@@ -64,6 +65,7 @@ pub async fn post_dictionary(
     responses(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown dictionary", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Used by a world", body = Problem, content_type = "application/problem+json")
     ))]

@@ -1,6 +1,9 @@
 //! `/admin/exemplars`: upload (a raster body or multipart parts), list, describe, delete.
-
-use std::collections::HashMap;
+//!
+//! An upload takes one of `max_concurrent_uploads` slots (beyond: 503), is spooled to the store's
+//! `uploads/` as it arrives (cut at `max_body_mb`), then, on the blocking pool, reserves its body
+//! and its decoded size (estimated from the file headers) from the upload memory budget before
+//! anything is decoded, and is streamed to the store once decoded and checked.
 
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{FromRequest, Multipart, Path, Query, Request, State};
@@ -8,11 +11,12 @@ use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 
-use terrasynth_core::raster::ELEVATION;
-use terrasynth_store::ingest::{self, UploadFormat};
-use terrasynth_store::ExemplarInfo;
+use terrasynth_store::ingest::{self, Spooled, UploadFormat, UploadLimits};
+use terrasynth_store::{ExemplarInfo, Store};
 
-use super::extract::{georef_from_query, query, read_body, upload_format};
+use super::extract::{
+    check_declared_length, discard, georef_from_query, query, spool_body, upload_format, Spooler,
+};
 use crate::server::error::{Problem, ServerError};
 use crate::server::state::{blocking, AppState};
 
@@ -60,11 +64,13 @@ fn multipart_error(e: axum::extract::multipart::MultipartError) -> ServerError {
         (status = 404, description = "Admin disabled", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body or raster too large", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Wrong content type", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "NaN-only, mismatched layers, absurd or missing georeference", body = Problem, content_type = "application/problem+json")
+        (status = 422, description = "NaN-only, mismatched layers, absurd or missing georeference", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Every upload slot is taken or the upload memory budget is in use (`Retry-After`)", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn post_exemplar(
     State(state): State<AppState>,
-    q: Result<Query<HashMap<String, String>>, QueryRejection>,
+    q: Result<Query<Vec<(String, String)>>, QueryRejection>,
     req: Request,
 ) -> Result<Response, ServerError> {
     let admin = state.admin()?;
@@ -86,72 +92,36 @@ pub async fn post_exemplar(
             .to_ascii_lowercase()
             .starts_with("multipart/form-data")
     });
-    let raster = if is_multipart {
-        let mut mp = Multipart::from_request(req, &())
-            .await
-            .map_err(|e| ServerError::BadRequest(format!("malformed multipart body: {e}")))?;
-        let mut parts: Vec<(String, UploadFormat, axum::body::Bytes)> = Vec::new();
-        let mut total = 0usize;
-        loop {
-            let field = mp.next_field().await.map_err(multipart_error)?;
-            let Some(field) = field else { break };
-            let part = field.name().unwrap_or("").to_string();
-            let format = match field.content_type() {
-                None => UploadFormat::Sniff,
-                Some(c) => upload_format(Some(c))?,
-            };
-            let bytes = field.bytes().await.map_err(multipart_error)?;
-            total += bytes.len();
-            if total > limits.max_body {
-                return Err(ServerError::TooLarge("the body exceeds the limit".into()));
-            }
-            if parts.len() > limits.read.max_layers {
-                return Err(ServerError::TooLarge(format!(
-                    "more than {} parts",
-                    limits.read.max_layers
-                )));
-            }
-            parts.push((part, format, bytes));
-        }
-        blocking(move || {
-            let elevation_at = parts
-                .iter()
-                .position(|(n, _, _)| n == ELEVATION)
-                .ok_or_else(|| {
-                    ServerError::Invalid("the multipart body has no `elevation` part".into())
-                })?;
-            let (_, format, bytes) = &parts[elevation_at];
-            let elevation =
-                ingest::decode_raster("part `elevation`", bytes, *format, georef, &limits)?;
-            let mut layers = Vec::new();
-            for (i, (n, format, bytes)) in parts.iter().enumerate() {
-                if i == elevation_at {
-                    continue;
-                }
-                ingest::check_layer_name(n)?;
-                let r = ingest::decode_raster(
-                    &format!("part `{n}`"),
-                    bytes,
-                    *format,
-                    Some(elevation.georef),
-                    &limits,
-                )?;
-                layers.push((n.clone(), r));
-            }
-            Ok(ingest::assemble(elevation, layers, &limits)?)
-        })
-        .await?
+    let max_body = limits.max_body as u64;
+    check_declared_length(&req, max_body)?;
+    let format = if is_multipart {
+        None
     } else {
-        let format = upload_format(ct.as_deref())?;
-        let bytes = read_body(req, limits.max_body).await?;
-        blocking(move || {
-            let r = ingest::decode_raster("the body", &bytes, format, georef, &limits)?;
-            Ok(ingest::assemble(r, Vec::new(), &limits)?)
-        })
-        .await?
+        Some(upload_format(ct.as_deref())?)
+    };
+    let _slot = admin
+        .upload_slots
+        .clone()
+        .try_acquire_owned()
+        .map_err(|_| {
+            ServerError::UploadsBusy(
+                "every upload slot is taken (max_concurrent_uploads); retry shortly".into(),
+            )
+        })?;
+    let store = admin.catalogue.store().clone();
+    let parts = match format {
+        Some(format) => vec![spool_body(req, &store, format, max_body).await?],
+        None => spool_multipart(req, &store, &limits).await?,
     };
     let catalogue = admin.catalogue.clone();
-    let info = blocking(move || Ok(catalogue.put_exemplar(&name, &raster)?)).await?;
+    let budget = admin.upload_memory.clone();
+    let info = blocking(move || {
+        let (raster, _reservation) = ingest::decode_spooled(&parts, georef, &limits, &budget)?;
+        // The files are no longer needed: remove them before storing.
+        drop(parts);
+        Ok(catalogue.put_exemplar(&name, &raster)?)
+    })
+    .await?;
     let mut resp = (StatusCode::CREATED, Json(&info)).into_response();
     if let Ok(v) = HeaderValue::from_str(&format!("/admin/exemplars/{}", info.id)) {
         resp.headers_mut().insert(header::LOCATION, v);
@@ -159,16 +129,74 @@ pub async fn post_exemplar(
     Ok(resp)
 }
 
+/// The parts of a multipart upload, each spooled to a file of `store` as it arrives: at most
+/// `max_layers` parts and `max_body` bytes together (413 beyond).
+async fn spool_multipart(
+    req: Request,
+    store: &Store,
+    limits: &UploadLimits,
+) -> Result<Vec<Spooled>, ServerError> {
+    let mut mp = Multipart::from_request(req, &())
+        .await
+        .map_err(|e| ServerError::BadRequest(format!("malformed multipart body: {e}")))?;
+    let mut parts: Vec<Spooled> = Vec::new();
+    let mut total = 0u64;
+    let limit = limits.max_body as u64;
+    let result: Result<(), ServerError> = async {
+        while let Some(mut field) = mp.next_field().await.map_err(multipart_error)? {
+            if parts.len() >= limits.read.max_layers {
+                return Err(ServerError::TooLarge(format!(
+                    "more than {} parts",
+                    limits.read.max_layers
+                )));
+            }
+            let name = field.name().unwrap_or("").to_string();
+            let format = match field.content_type() {
+                None => UploadFormat::Sniff,
+                Some(c) => upload_format(Some(c))?,
+            };
+            let mut spooler = Spooler::new(store, &name, format).await?;
+            loop {
+                let chunk = match field.chunk().await {
+                    Ok(Some(c)) => c,
+                    Ok(None) => break,
+                    Err(e) => {
+                        spooler.discard().await;
+                        return Err(multipart_error(e));
+                    }
+                };
+                if let Err(e) = spooler.push(&chunk, &mut total, limit).await {
+                    spooler.discard().await;
+                    return Err(e);
+                }
+            }
+            parts.push(spooler.finish().await?);
+        }
+        Ok(())
+    }
+    .await;
+    match result {
+        Ok(()) => Ok(parts),
+        Err(e) => {
+            discard(parts).await;
+            Err(e)
+        }
+    }
+}
+
 /// Every exemplar.
 #[utoipa::path(get, path = "/admin/exemplars", tag = "admin", security(("bearer" = [])),
     responses(
         (status = 200, description = "Exemplars", body = Vec<ExemplarInfo>),
-        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json")
+        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn list_exemplars(
     State(state): State<AppState>,
 ) -> Result<Json<Vec<ExemplarInfo>>, ServerError> {
-    Ok(Json(state.admin()?.catalogue.exemplars()))
+    // Exemplars not verified since start are verified first: blocking IO.
+    let catalogue = state.admin()?.catalogue.clone();
+    Ok(Json(blocking(move || Ok(catalogue.exemplars())).await?))
 }
 
 /// One exemplar.
@@ -177,13 +205,15 @@ pub async fn list_exemplars(
     responses(
         (status = 200, description = "The exemplar", body = ExemplarInfo),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown exemplar", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn get_exemplar(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<ExemplarInfo>, ServerError> {
-    Ok(Json(state.admin()?.catalogue.exemplar(&id)?))
+    let catalogue = state.admin()?.catalogue.clone();
+    Ok(Json(blocking(move || Ok(catalogue.exemplar(&id)?)).await?))
 }
 
 /// Delete an exemplar.
@@ -192,6 +222,7 @@ pub async fn get_exemplar(
     responses(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown exemplar", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Used by a build or a world", body = Problem, content_type = "application/problem+json")
     ))]

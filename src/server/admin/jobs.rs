@@ -13,7 +13,8 @@ use crate::server::state::{blocking, AppState};
 #[utoipa::path(get, path = "/admin/jobs", tag = "admin", security(("bearer" = [])),
     responses(
         (status = 200, description = "Jobs, oldest first", body = Vec<Job>),
-        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json")
+        (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn list_jobs(State(state): State<AppState>) -> Result<Json<Vec<Job>>, ServerError> {
     Ok(Json(state.admin()?.catalogue.jobs()))
@@ -25,6 +26,7 @@ pub async fn list_jobs(State(state): State<AppState>) -> Result<Json<Vec<Job>>, 
     responses(
         (status = 200, description = "The job", body = Job),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown job", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn get_job(
@@ -40,6 +42,7 @@ pub async fn get_job(
     responses(
         (status = 202, description = "Cancelled (queued) or cancelling (running)", body = Job),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown job", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Already ended", body = Problem, content_type = "application/problem+json")
     ))]

@@ -4,21 +4,33 @@
 //! uploads, fsync'd writes and deletions, assembling worlds) runs on the blocking pool and builds
 //! on their own workers, never on an async runtime thread.
 //!
-//! - [`auth`]: the bearer token, compared in constant time;
-//! - [`extract`]: bodies, queries and upload formats;
+//! - [`auth`]: the bearer token, compared in constant time, and [`throttle`]: failed attempts
+//!   logged and rate-limited per client address;
+//! - [`extract`]: bodies (spooled to the store's `uploads/` as they arrive), queries and upload
+//!   formats;
 //! - [`exemplars`], [`dictionaries`], [`jobs`], [`worlds`]: the handlers.
+//!
+//! Uploads are bounded in number (`max_concurrent_uploads`, beyond: 503) and in memory (each
+//! reserves its body and its decoded size from a budget of `upload_memory_mb` before anything is
+//! decoded).
 
 pub mod auth;
 pub mod dictionaries;
 pub mod exemplars;
 pub mod extract;
 pub mod jobs;
+pub mod throttle;
 pub mod worlds;
 
 use std::sync::Arc;
 
+use tokio::sync::Semaphore;
+
 use terrasynth_store::ingest::UploadLimits;
-use terrasynth_store::Catalogue;
+use terrasynth_store::{Catalogue, MemoryBudget};
+
+use crate::config::ServerConfig;
+use throttle::AuthThrottle;
 
 /// The admin API's state.
 pub struct Admin {
@@ -30,21 +42,31 @@ pub struct Admin {
     pub limits: UploadLimits,
     /// The cache share of each world created through the API.
     pub cache_bytes: u64,
+    /// Failed authentications per client address.
+    pub throttle: AuthThrottle,
+    /// Uploads processed at once.
+    pub upload_slots: Arc<Semaphore>,
+    /// The memory all uploads in progress may use together.
+    pub upload_memory: Arc<MemoryBudget>,
 }
 
 impl Admin {
-    /// The admin API over `catalogue`, enabled when `token` is not empty.
+    /// The admin API over `catalogue` with the token and upload and authentication settings of
+    /// `config` (enabled when the token is not empty).
     pub fn new(
         catalogue: Arc<Catalogue>,
-        token: &str,
+        config: &ServerConfig,
         limits: UploadLimits,
         cache_bytes: u64,
     ) -> Admin {
         Admin {
             catalogue,
-            token: Some(token.to_string()).filter(|t| !t.is_empty()),
+            token: Some(config.admin_token.0.clone()).filter(|t| !t.is_empty()),
             limits,
             cache_bytes,
+            throttle: AuthThrottle::new(config.auth_failures_per_minute),
+            upload_slots: Arc::new(Semaphore::new(config.max_concurrent_uploads.max(1))),
+            upload_memory: MemoryBudget::new(config.upload_memory_mb.saturating_mul(1 << 20)),
         }
     }
 

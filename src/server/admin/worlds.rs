@@ -18,7 +18,7 @@ use terrasynth_store::{Job, ServiceError, SketchRequest, WorldDefinition, WorldR
 use super::extract::json_body;
 use crate::server::error::{Problem, ServerError};
 use crate::server::state::{blocking, AppState};
-use crate::server::worlds::{prepare_landscapes, world_from};
+use crate::server::worlds::{prepare_landscapes, share_shortfall, world_from};
 
 /// `POST /admin/worlds` answer.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -40,10 +40,11 @@ pub struct WorldCreated {
         (status = 201, description = "Created; tiles are served at once", body = WorldCreated),
         (status = 400, description = "Malformed JSON", body = Problem, content_type = "application/problem+json"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Name taken", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body too large", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Not JSON", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Unknown base or dictionary, invalid zoom, weights, materials or species", body = Problem, content_type = "application/problem+json")
+        (status = 422, description = "Unknown base or dictionary, invalid zoom, weights, materials or species, or a base too large for a world's share of `cache_mb`", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn post_world(
     State(state): State<AppState>,
@@ -60,8 +61,15 @@ pub async fn post_world(
             &def,
             |name| live.get(name).is_some(),
             |resolved| {
-                world_from(resolved, cache_bytes)
-                    .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))
+                let world = world_from(resolved, cache_bytes)
+                    .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))?;
+                // A world that would overrun its memory share is refused, nothing stored.
+                match share_shortfall(&world) {
+                    Some(why) => Err(ServiceError::Invalid(format!(
+                        "cannot create the world: {why}"
+                    ))),
+                    None => Ok(world),
+                }
             },
         )?;
         let world = Arc::new(world);
@@ -141,6 +149,7 @@ pub async fn post_sketch_world(
     responses(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Missing or wrong token", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "Too many failed authentications from this address (`Retry-After`)", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "A configured (read-only) world", body = Problem, content_type = "application/problem+json")
     ))]

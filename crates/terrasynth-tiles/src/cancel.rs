@@ -1,0 +1,457 @@
+//! Cooperative cancellation of tile computations that nobody waits for any more, with request
+//! coalescing that stays correct for those who still wait.
+//!
+//! A request that may be abandoned (its client leaves, its deadline passes) runs its computation
+//! under a [`CancelToken`] with [`run_cancellable`]. Every computation of a cache entry goes
+//! through [`Flights::run`], which coalesces concurrent computations of one key: the first caller
+//! computes ("leads the flight"), later callers wait for its result. Each flight records the
+//! *interest* of everyone waiting for it: a token, or the flight of an enclosing computation that
+//! needs this one. A flight counts as cancelled only when every one of its waiters is cancelled, so
+//! a computation stops only when nobody wants it any more, however the requests that need it
+//! overlap; a waiter whose own interest is cancelled stops waiting at once.
+//!
+//! The interest of the computation running on a thread is kept in a thread-local, so that the
+//! pyramids' recursive `get_or_compute` calls (each one a cancellation point) need no extra
+//! parameter. Work started without a token — a background thread, a command-line tool, a test —
+//! is never cancelled. A cancelled computation returns [`TileError::Cancelled`] and leaves no
+//! trace in any cache: a waiter that joined after its leader gave up computes it again.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::hash::Hash;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::Duration;
+
+use crate::error::TileError;
+
+/// How often a waiting thread checks whether its own interest was cancelled.
+const WAIT_SLICE: Duration = Duration::from_millis(20);
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The cancellation flag of one request: cancelled once, for ever.
+#[derive(Clone, Debug, Default)]
+pub struct CancelToken(Arc<AtomicBool>);
+
+impl CancelToken {
+    /// A token not cancelled yet.
+    pub fn new() -> Self {
+        CancelToken::default()
+    }
+
+    /// Cancels the token (and every computation only it still waits for).
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::Release);
+    }
+
+    /// Whether the token was cancelled.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Acquire)
+    }
+
+    /// A guard that cancels the token when dropped: hold it in the future that waits for the
+    /// computation, so that dropping the future (client gone, deadline passed) cancels it.
+    pub fn cancel_on_drop(&self) -> CancelOnDrop {
+        CancelOnDrop(self.clone())
+    }
+}
+
+/// Cancels its token when dropped (see [`CancelToken::cancel_on_drop`]).
+#[derive(Debug)]
+pub struct CancelOnDrop(CancelToken);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.cancel();
+    }
+}
+
+/// Who wants a computation: nobody who can leave, a request's token, or an enclosing flight.
+#[derive(Clone, Debug)]
+enum Interest {
+    Always,
+    Token(CancelToken),
+    Flight(Arc<Waiters>),
+}
+
+impl Interest {
+    fn is_cancelled(&self) -> bool {
+        match self {
+            Interest::Always => false,
+            Interest::Token(t) => t.is_cancelled(),
+            Interest::Flight(w) => w.is_cancelled(),
+        }
+    }
+
+    fn same(&self, other: &Interest) -> bool {
+        match (self, other) {
+            (Interest::Always, Interest::Always) => true,
+            (Interest::Token(a), Interest::Token(b)) => Arc::ptr_eq(&a.0, &b.0),
+            (Interest::Flight(a), Interest::Flight(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+}
+
+/// The interests waiting for one flight.
+#[derive(Debug, Default)]
+struct Waiters(Mutex<Vec<Interest>>);
+
+impl Waiters {
+    /// Cancelled when every waiter is (or none is left). The list is copied out of the lock, so
+    /// no two of these locks are ever held together.
+    fn is_cancelled(&self) -> bool {
+        let waiters = lock(&self.0).clone();
+        waiters.iter().all(Interest::is_cancelled)
+    }
+
+    fn push(&self, i: Interest) {
+        lock(&self.0).push(i);
+    }
+
+    fn remove(&self, i: &Interest) {
+        let mut w = lock(&self.0);
+        if let Some(k) = w.iter().position(|x| x.same(i)) {
+            w.swap_remove(k);
+        }
+    }
+}
+
+thread_local! {
+    static CURRENT: RefCell<Interest> = const { RefCell::new(Interest::Always) };
+}
+
+fn current() -> Interest {
+    CURRENT.with(|c| c.borrow().clone())
+}
+
+/// Restores the previous interest of the thread when dropped (also on unwinding).
+struct Restore(Option<Interest>);
+
+impl Drop for Restore {
+    fn drop(&mut self) {
+        if let Some(prev) = self.0.take() {
+            CURRENT.with(|c| *c.borrow_mut() = prev);
+        }
+    }
+}
+
+fn with_interest<R>(interest: Interest, f: impl FnOnce() -> R) -> R {
+    let prev = CURRENT.with(|c| c.replace(interest));
+    let _restore = Restore(Some(prev));
+    f()
+}
+
+/// Runs `f` on this thread on behalf of `token`: the computations it starts or joins stop as
+/// soon as `token` and every other party waiting for them are cancelled.
+pub fn run_cancellable<R>(token: &CancelToken, f: impl FnOnce() -> R) -> R {
+    with_interest(Interest::Token(token.clone()), f)
+}
+
+/// Runs `f` on this thread as work nobody can abandon (computations it leads are never
+/// cancelled): for results that are cached for ever once computed, such as a world's
+/// whole-world layers.
+pub fn uncancellable<R>(f: impl FnOnce() -> R) -> R {
+    with_interest(Interest::Always, f)
+}
+
+/// Whether the computation running on this thread has been abandoned by everyone who wanted it.
+pub fn is_cancelled() -> bool {
+    current().is_cancelled()
+}
+
+/// One computation in progress: who waits for it, and its result once done.
+struct Flight<V> {
+    waiters: Arc<Waiters>,
+    result: Mutex<Option<Result<V, TileError>>>,
+    done: Condvar,
+}
+
+enum Waited<V> {
+    Done(Result<V, TileError>),
+    Left,
+}
+
+impl<V: Clone> Flight<V> {
+    fn finish(&self, r: Result<V, TileError>) {
+        *lock(&self.result) = Some(r);
+        self.done.notify_all();
+    }
+
+    /// Waits for the result, or leaves (dropping its interest) once `me` is cancelled.
+    fn wait(&self, me: &Interest) -> Waited<V> {
+        let mut result = lock(&self.result);
+        loop {
+            if let Some(r) = result.as_ref() {
+                return Waited::Done(r.clone());
+            }
+            if me.is_cancelled() {
+                drop(result);
+                self.waiters.remove(me);
+                return Waited::Left;
+            }
+            result = match self.done.wait_timeout(result, WAIT_SLICE) {
+                Ok((g, _)) => g,
+                Err(p) => p.into_inner().0,
+            };
+        }
+    }
+}
+
+/// Computations in progress by key, coalesced: one computes, the others wait (see the module
+/// documentation for cancellation).
+pub struct Flights<K, V> {
+    map: Mutex<HashMap<K, Arc<Flight<V>>>>,
+}
+
+impl<K, V> Default for Flights<K, V> {
+    fn default() -> Self {
+        Flights {
+            map: Mutex::new(HashMap::new()),
+        }
+    }
+}
+
+impl<K, V> std::fmt::Debug for Flights<K, V> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Flights")
+            .field("in_flight", &lock(&self.map).len())
+            .finish()
+    }
+}
+
+impl<K: Hash + Eq + Clone, V: Clone> Flights<K, V> {
+    /// No computation in progress.
+    pub fn new() -> Self {
+        Flights::default()
+    }
+
+    /// The value of `key` computed by `compute`, once even when several threads ask for it at the
+    /// same time (the others wait for that computation). A successful value is handed to
+    /// `publish` (to cache it) before later callers stop finding the flight, so that they find
+    /// it in the cache instead. Fails with [`TileError::Cancelled`] when the caller's interest is
+    /// cancelled; a caller still interested never receives a cancellation meant for others.
+    pub fn run(
+        &self,
+        key: K,
+        compute: impl FnOnce() -> Result<V, TileError>,
+        publish: impl FnOnce(&V),
+    ) -> Result<V, TileError> {
+        let me = current();
+        let mut compute = Some(compute);
+        let mut publish = Some(publish);
+        loop {
+            if me.is_cancelled() {
+                return Err(TileError::Cancelled);
+            }
+            let (flight, leader) = {
+                let mut map = lock(&self.map);
+                match map.get(&key) {
+                    Some(f) => {
+                        f.waiters.push(me.clone());
+                        (f.clone(), false)
+                    }
+                    None => {
+                        let f = Arc::new(Flight {
+                            waiters: Arc::new(Waiters(Mutex::new(vec![me.clone()]))),
+                            result: Mutex::new(None),
+                            done: Condvar::new(),
+                        });
+                        map.insert(key.clone(), f.clone());
+                        (f, true)
+                    }
+                }
+            };
+            if leader {
+                let r = match compute.take() {
+                    Some(c) => with_interest(Interest::Flight(flight.waiters.clone()), c),
+                    None => Err(TileError::Cancelled),
+                };
+                if let (Ok(v), Some(p)) = (&r, publish.take()) {
+                    p(v);
+                }
+                {
+                    let mut map = lock(&self.map);
+                    if map.get(&key).is_some_and(|f| Arc::ptr_eq(f, &flight)) {
+                        map.remove(&key);
+                    }
+                }
+                flight.finish(r.clone());
+                return r;
+            }
+            match flight.wait(&me) {
+                // The leader gave up before this caller joined (or because everyone it knew of
+                // left): compute it again.
+                Waited::Done(Err(TileError::Cancelled)) if !me.is_cancelled() => continue,
+                Waited::Done(r) => return r,
+                Waited::Left => return Err(TileError::Cancelled),
+            }
+        }
+    }
+
+    /// Number of computations in progress.
+    pub fn in_flight(&self) -> usize {
+        lock(&self.map).len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicUsize;
+    use std::sync::Barrier;
+
+    /// Spins until `cond` holds; fails the test after 10 s (a hang is a failure, not a wait).
+    fn wait_until(what: &str, cond: impl Fn() -> bool) {
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        while !cond() {
+            assert!(std::time::Instant::now() < deadline, "never: {what}");
+            std::thread::yield_now();
+        }
+    }
+
+    /// A computation that runs until told to finish (or until cancelled), checking like the
+    /// pyramid does between steps.
+    fn slow(release: &AtomicBool, steps: &AtomicUsize) -> Result<u32, TileError> {
+        loop {
+            if is_cancelled() {
+                return Err(TileError::Cancelled);
+            }
+            if release.load(Ordering::Acquire) {
+                return Ok(7);
+            }
+            steps.fetch_add(1, Ordering::Relaxed);
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    #[test]
+    fn a_lone_abandoned_computation_stops_and_leaves_nothing() {
+        let flights: Flights<u8, u32> = Flights::new();
+        let token = CancelToken::new();
+        let release = AtomicBool::new(false);
+        let steps = AtomicUsize::new(0);
+        let published = AtomicUsize::new(0);
+        std::thread::scope(|s| {
+            let h = s.spawn(|| {
+                run_cancellable(&token, || {
+                    flights.run(
+                        1,
+                        || slow(&release, &steps),
+                        |_| {
+                            published.fetch_add(1, Ordering::Relaxed);
+                        },
+                    )
+                })
+            });
+            wait_until("started", || steps.load(Ordering::Relaxed) >= 3);
+            token.cancel();
+            assert_eq!(h.join().unwrap(), Err(TileError::Cancelled));
+        });
+        assert_eq!(published.load(Ordering::Relaxed), 0);
+        assert_eq!(flights.in_flight(), 0);
+        // Nothing is poisoned: the next caller computes it.
+        let again = flights.run(1, || Ok(9), |_| {});
+        assert_eq!(again, Ok(9));
+    }
+
+    #[test]
+    fn the_computation_goes_on_while_someone_still_waits() {
+        let flights: Flights<u8, u32> = Flights::new();
+        let (a, b) = (CancelToken::new(), CancelToken::new());
+        let release = AtomicBool::new(false);
+        let steps = AtomicUsize::new(0);
+        let computed = AtomicUsize::new(0);
+        std::thread::scope(|s| {
+            let leader = s.spawn(|| {
+                run_cancellable(&a, || {
+                    flights.run(
+                        1,
+                        || {
+                            computed.fetch_add(1, Ordering::Relaxed);
+                            slow(&release, &steps)
+                        },
+                        |_| {},
+                    )
+                })
+            });
+            wait_until("started", || steps.load(Ordering::Relaxed) >= 2);
+            let waiter = s.spawn(|| run_cancellable(&b, || flights.run(1, || Ok(0), |_| {})));
+            // Wait until b has joined the flight, then the leader's own client leaves.
+            wait_until("b joined", || {
+                lock(&flights.map)
+                    .get(&1)
+                    .is_some_and(|f| lock(&f.waiters.0).len() >= 2)
+            });
+            a.cancel();
+            std::thread::sleep(Duration::from_millis(30));
+            release.store(true, Ordering::Release);
+            // b still wanted it: it gets the value, computed once.
+            assert_eq!(waiter.join().unwrap(), Ok(7));
+            let _ = leader.join().unwrap();
+        });
+        assert_eq!(computed.load(Ordering::Relaxed), 1);
+    }
+
+    #[test]
+    fn nested_computations_stop_only_when_every_outer_waiter_left() {
+        // Outer flights 1 and 2 (two requests) both need inner flight 10.
+        let outer: Flights<u8, u32> = Flights::new();
+        let inner: Flights<u8, u32> = Flights::new();
+        let (a, b) = (CancelToken::new(), CancelToken::new());
+        let release = AtomicBool::new(false);
+        let steps = AtomicUsize::new(0);
+        let barrier = Barrier::new(3);
+        let run = |token: &CancelToken, key: u8| {
+            run_cancellable(token, || {
+                outer.run(
+                    key,
+                    || {
+                        barrier.wait();
+                        inner.run(10, || slow(&release, &steps), |_| {})
+                    },
+                    |_| {},
+                )
+            })
+        };
+        std::thread::scope(|s| {
+            let ha = s.spawn(|| run(&a, 1));
+            let hb = s.spawn(|| run(&b, 2));
+            barrier.wait();
+            wait_until("both joined", || {
+                lock(&inner.map)
+                    .get(&10)
+                    .is_some_and(|f| lock(&f.waiters.0).len() >= 2)
+            });
+            a.cancel();
+            // b's request still needs the inner computation: it goes on (on whichever thread
+            // leads it).
+            let before = steps.load(Ordering::Relaxed);
+            wait_until("the inner computation goes on", || {
+                steps.load(Ordering::Relaxed) >= before + 3
+            });
+            b.cancel();
+            assert_eq!(ha.join().unwrap(), Err(TileError::Cancelled));
+            assert_eq!(hb.join().unwrap(), Err(TileError::Cancelled));
+        });
+        assert_eq!(inner.in_flight(), 0);
+        assert_eq!(outer.in_flight(), 0);
+    }
+
+    #[test]
+    fn work_without_a_token_is_never_cancelled() {
+        let flights: Flights<u8, u32> = Flights::new();
+        assert!(!is_cancelled());
+        let t = CancelToken::new();
+        t.cancel();
+        let r = run_cancellable(&t, || uncancellable(|| flights.run(3, || Ok(4), |_| {})));
+        assert_eq!(r, Ok(4));
+        assert_eq!(
+            run_cancellable(&t, || flights.run(3, || Ok(4), |_| {})),
+            Err(TileError::Cancelled)
+        );
+    }
+}
