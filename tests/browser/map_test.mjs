@@ -98,25 +98,34 @@ try {
     );
     log(`${what}: idle after ${((Date.now() - t0) / 1000).toFixed(1)} s`);
   };
+  // Grey-level variance of the map's canvas, read inside MapLibre's `render` event right after a
+  // frame is drawn: that also works on pages whose WebGL canvas does not preserve its drawing
+  // buffer (the README's minimal page), where a later read sees an empty buffer.
   const canvasVariance = () =>
-    page.evaluate(() => {
-      const src = window.terrasynth.map.getCanvas();
-      const c = document.createElement('canvas');
-      c.width = 256;
-      c.height = 160;
-      const ctx = c.getContext('2d');
-      ctx.drawImage(src, 0, 0, c.width, c.height);
-      const d = ctx.getImageData(0, 0, c.width, c.height).data;
-      let s = 0;
-      let s2 = 0;
-      const n = d.length / 4;
-      for (let i = 0; i < d.length; i += 4) {
-        const g = 0.299 * d[i] + 0.587 * d[i + 1] + 0.114 * d[i + 2];
-        s += g;
-        s2 += g * g;
-      }
-      return s2 / n - (s / n) ** 2;
-    });
+    page.evaluate(
+      () =>
+        new Promise((resolve) => {
+          const map = window.terrasynth.map;
+          map.once('render', () => {
+            const c = document.createElement('canvas');
+            c.width = 256;
+            c.height = 160;
+            const ctx = c.getContext('2d');
+            ctx.drawImage(map.getCanvas(), 0, 0, c.width, c.height);
+            const d = ctx.getImageData(0, 0, c.width, c.height).data;
+            let s = 0;
+            let s2 = 0;
+            const n = d.length / 4;
+            for (let i = 0; i < d.length; i += 4) {
+              const g = 0.299 * d[i] + 0.587 * d[i + 1] + 0.114 * d[i + 2];
+              s += g;
+              s2 += g * g;
+            }
+            resolve(s2 / n - (s / n) ** 2);
+          });
+          map.triggerRepaint();
+        }),
+    );
   const checkDrawn = async (what) => {
     const v = await canvasVariance();
     log(`${what}: canvas grey-level variance ${v.toFixed(1)}`);
