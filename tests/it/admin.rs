@@ -1250,6 +1250,14 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
         assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{field}: {v}");
         assert!(v["detail"].as_str().unwrap().contains(field), "{v}");
     }
+    // A world named like an admin route could never be deleted (DELETE /admin/worlds/sketch
+    // is not the world's route): refused by name, nothing stored.
+    let before = store_files(dir.path());
+    let body = serde_json::json!({"name": "sketch", "base": base, "dictionaries": [dict]});
+    let (st, v) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(v["detail"].as_str().unwrap().contains("reserved"), "{v}");
+    assert_eq!(store_files(dir.path()), before);
 }
 
 // --- sketch worlds and features (issue #18) ---

@@ -15,7 +15,7 @@ use terrasynth_core::synth::sketch::{
 };
 
 use crate::error::ServiceError;
-use crate::worlds::check_name;
+use crate::worlds::check_world_name;
 
 /// Most exemplars one sketch may draw patches from.
 pub const MAX_SKETCH_EXEMPLARS: usize = 8;
@@ -50,7 +50,7 @@ impl SketchRequest {
     /// The grid and sketch the request describes, checked: the name, the bounds and cell size
     /// against `limits`, the sketch's lines. Errors are [`ServiceError::Invalid`] (a 422).
     pub fn checked_sketch(&self, limits: &SizeLimits) -> Result<Sketch, ServiceError> {
-        check_name("world name", &self.name)?;
+        check_world_name(&self.name)?;
         if self.exemplars.is_empty() || self.exemplars.len() > MAX_SKETCH_EXEMPLARS {
             return Err(ServiceError::Invalid(format!(
                 "give 1–{MAX_SKETCH_EXEMPLARS} exemplar ids"

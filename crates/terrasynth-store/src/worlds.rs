@@ -125,6 +125,21 @@ pub struct WorldDefaults {
     pub landscape: LandscapeConfig,
 }
 
+/// World names the admin API's own routes take (`POST /admin/worlds/sketch`): a world of that
+/// name could not be deleted through `DELETE /admin/worlds/{name}`.
+pub const RESERVED_WORLD_NAMES: [&str; 1] = ["sketch"];
+
+/// Checks a user-given world name: the name rule, and not a reserved name.
+pub fn check_world_name(name: &str) -> Result<(), ServiceError> {
+    check_name("world name", name)?;
+    if RESERVED_WORLD_NAMES.contains(&name) {
+        return Err(ServiceError::Invalid(format!(
+            "world name `{name}` is reserved (it is an admin route)"
+        )));
+    }
+    Ok(())
+}
+
 /// Checks a user-given name.
 pub fn check_name(what: &str, name: &str) -> Result<(), ServiceError> {
     if is_valid_name(name) {
@@ -173,7 +188,7 @@ impl WorldDefinition {
     /// store checked: the name, finite non-negative weights, a valid landscape. The base and
     /// dictionary are checked when the definition is resolved against the store.
     pub fn from_request(r: WorldRequest, d: &WorldDefaults) -> Result<Self, ServiceError> {
-        check_name("world name", &r.name)?;
+        check_world_name(&r.name)?;
         let def = WorldDefinition {
             name: r.name,
             base: r.base,
