@@ -8,14 +8,17 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PORT=${1:-18473}
 LIST=tests/data/default_world_tiles.sha256
-STORE=$(mktemp -d target/tile-hash-store.XXXXXX)
+WORK=$(mktemp -d target/tile-hash.XXXXXX)
+# The store directory must be new or empty (the server refuses foreign directories).
+STORE=$WORK/store
 cargo build --release --quiet --bin terrasynth
 TERRASYNTH_STORE_DIR=$STORE target/release/terrasynth serve --listen "127.0.0.1:$PORT" \
-    >"$STORE/server.log" 2>&1 &
+    >"$WORK/server.log" 2>&1 &
 pid=$!
-trap 'kill $pid 2>/dev/null || true; rm -rf "$STORE"' EXIT
+trap 'kill $pid 2>/dev/null || true; rm -rf "$WORK"' EXIT
 for _ in $(seq 600); do
     curl -sf "http://127.0.0.1:$PORT/worlds" >/dev/null && break
+    kill -0 $pid 2>/dev/null || { cat "$WORK/server.log" >&2; exit 1; }
     sleep 1
 done
 tmp=$(mktemp)

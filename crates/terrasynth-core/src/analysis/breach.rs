@@ -36,6 +36,53 @@ use super::common::D8_OFFSETS;
 /// ones.
 pub const STEP_COST: f64 = 0.01;
 
+/// How far each pit's channel may reach: pits in steep terrain (a rise of at least `steep_rise`
+/// within [`RISE_REACH`] cells) search `radius` cells, pits in flat terrain `flat_radius` (0:
+/// left alone). Closed depressions are rare on steep fluvial slopes, where a pit is an artefact
+/// of a blocked valley, and common on plains (playas, basins), where a pit is often real.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BreachRule {
+    /// Reach of the channels of steep pits (the largest reach; sets the margin).
+    pub radius: usize,
+    /// Reach of the channels of flat pits, at most `radius`.
+    pub flat_radius: usize,
+    /// Rise (same unit as the surface) within [`RISE_REACH`] cells of a pit that makes it steep.
+    pub steep_rise: f32,
+}
+
+impl BreachRule {
+    /// Every pit searches `radius` cells.
+    pub fn uniform(radius: usize) -> Self {
+        BreachRule {
+            radius,
+            flat_radius: radius,
+            steep_rise: 0.0,
+        }
+    }
+
+    /// The reach of pit `(r, c)` of value `zq` (at least [`RISE_REACH`] cells from every edge).
+    fn reach(&self, z: &[f32], cols: usize, r: usize, c: usize, zq: f32) -> usize {
+        if self.flat_radius >= self.radius {
+            return self.radius;
+        }
+        let k = RISE_REACH;
+        let mut top = zq;
+        for rr in r - k..=r + k {
+            for &v in &z[rr * cols + c - k..=rr * cols + c + k] {
+                top = top.max(v);
+            }
+        }
+        if top - zq >= self.steep_rise {
+            self.radius
+        } else {
+            self.flat_radius
+        }
+    }
+}
+
+/// Chebyshev reach of the neighbourhood whose rise tells steep pits from flat ones.
+pub const RISE_REACH: usize = 2;
+
 /// Length of a diagonal step relative to a cardinal one in the search's length term.
 const DIAGONAL_STEP: f64 = std::f64::consts::SQRT_2;
 
@@ -152,8 +199,22 @@ impl Search {
 
     /// The channel from pit `(r, c)` of the row-major `z` (`cols` wide; the pit at least
     /// `radius` cells from every edge), if a strictly lower cell lies within the radius.
-    fn channel(&mut self, z: &[f32], cols: usize, r: usize, c: usize) -> Option<Channel> {
+    fn channel(
+        &mut self,
+        z: &[f32],
+        cols: usize,
+        r: usize,
+        c: usize,
+        limit: usize,
+    ) -> Option<Channel> {
         let (side, radius) = (self.side, self.radius);
+        if limit == 0 {
+            return None;
+        }
+        let (lo, hi) = (
+            radius + 1 - limit.min(radius),
+            radius + 1 + limit.min(radius),
+        );
         if self.generation >= u32::MAX - 1 {
             // Stamps would collide with the sentinels: start afresh.
             *self = Search::new(radius);
@@ -188,6 +249,10 @@ impl Search {
                 let n = cell.wrapping_add_signed(off);
                 let stamp = self.done[n];
                 if stamp == gen || stamp == u32::MAX {
+                    continue;
+                }
+                let (nr, nc) = (n / side, n % side);
+                if nr < lo || nr > hi || nc < lo || nc > hi {
                     continue;
                 }
                 let nd = cost + ((f64::from(at(n)) - f64::from(zq)).max(0.0) + step_cost);
@@ -240,7 +305,7 @@ fn profile(z: &[f32], cols: usize, zq: f32, path: &[(usize, usize)]) -> Option<C
 /// The frame [`breach_pits`] consumes on each side: twice the channel reach (a pit up to
 /// `radius` outside the window can carve into it, and its search reads `radius` further).
 pub fn breach_margin(radius: usize) -> usize {
-    2 * radius.max(1)
+    2 * radius.max(RISE_REACH)
 }
 
 /// Breaches the pits of `z`, whose cell `(0, 0)` lies at global `origin = (row, col)`, with
@@ -248,7 +313,14 @@ pub fn breach_margin(radius: usize) -> usize {
 /// inner window (`z` without a frame of [`breach_margin`] cells; empty when `z` is too small).
 /// The inner values are the same whatever frame surrounds them.
 pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2<f32> {
-    let radius = radius.max(1);
+    breach_pits_with(z, origin, BreachRule::uniform(radius))
+}
+
+/// [`breach_pits`] with a reach per pit by [`BreachRule`]; the frame is
+/// [`breach_margin`]`(rule.radius)`.
+pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -> Array2<f32> {
+    let radius = rule.radius.max(RISE_REACH);
+    let rule = BreachRule { radius, ..rule };
     let (rows, cols) = z.dim();
     let m = breach_margin(radius);
     if rows <= 2 * m || cols <= 2 * m {
@@ -271,7 +343,10 @@ pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2
         .par_iter()
         .map_init(
             || Search::new(radius),
-            |s, &(r, c)| s.channel(v, cols, r, c).unwrap_or_default(),
+            |s, &(r, c)| {
+                let limit = rule.reach(v, cols, r, c, v[r * cols + c]);
+                s.channel(v, cols, r, c, limit).unwrap_or_default()
+            },
         )
         .collect();
     let (ir, ic) = (rows - 2 * m, cols - 2 * m);
@@ -293,7 +368,17 @@ pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2
 /// path by walking back through the neighbour of lowest `(cost, global index)` among those
 /// expanded before the cell whose cost plus the cell's entry cost gives the cell's cost.
 pub fn breach_pits_naive(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2<f32> {
-    let radius = radius.max(1);
+    breach_pits_naive_with(z, origin, BreachRule::uniform(radius))
+}
+
+/// Reference implementation of [`breach_pits_with`]: as [`breach_pits_naive`], a pit's box
+/// being `flat_radius` wide when no cell within [`RISE_REACH`] of it rises `steep_rise` above it.
+pub fn breach_pits_naive_with(
+    z: &Array2<f32>,
+    origin: (i64, i64),
+    rule: BreachRule,
+) -> Array2<f32> {
+    let radius = rule.radius.max(RISE_REACH);
     let (rows, cols) = z.dim();
     let m = 2 * radius;
     if rows <= 2 * m || cols <= 2 * m {
@@ -331,13 +416,28 @@ pub fn breach_pits_naive(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> 
                 continue;
             }
             let zq = z[q];
+            let k = RISE_REACH as isize;
+            let steep = (-k..=k).any(|dr| {
+                (-k..=k).any(|dc| {
+                    let a = ((r as isize + dr) as usize, (c as isize + dc) as usize);
+                    z[a] - zq >= rule.steep_rise
+                })
+            });
+            let reach = if steep || rule.flat_radius >= radius {
+                radius
+            } else {
+                rule.flat_radius
+            };
+            if reach == 0 {
+                continue;
+            }
             let inside = |a: (usize, usize)| {
                 // Neighbours of the frame wrap to huge indices: saturate, then the upper bound
                 // excludes them.
-                a.0.saturating_add(radius) >= r
-                    && a.0 <= r + radius
-                    && a.1.saturating_add(radius) >= c
-                    && a.1 <= c + radius
+                a.0.saturating_add(reach) >= r
+                    && a.0 <= r + reach
+                    && a.1.saturating_add(reach) >= c
+                    && a.1 <= c + reach
             };
             let is_goal = |a: (usize, usize)| z[a] < zq;
             let entry = |a: (usize, usize), step: f64| {

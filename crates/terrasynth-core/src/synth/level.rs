@@ -35,7 +35,7 @@ use super::kernel::{
     UpKernel, CATMULL_ROM,
 };
 pub use super::levers::{Levers, MAX_AMPLIFY_SPARSITY};
-use crate::analysis::breach::{breach_margin, breach_pits};
+use crate::analysis::breach::{breach_margin, breach_pits_with, BreachRule, RISE_REACH};
 use crate::dictionary::features::{centre_normalise, patch_mean_slope};
 use crate::dictionary::matching::{unit_centred, MatchScratch, MatchWeights, Matcher, Query};
 use crate::dictionary::omp::{Omp, OmpScratch};
@@ -405,6 +405,7 @@ impl Amplifier {
             .collect();
         let pw = parent.window;
         let roughness = self.levers.roughness;
+        let floor = self.levers.floor_m * (parent_cell_m / 2000.0).max(0.0).powf(0.7);
         (0..nj * ni)
             .into_par_iter()
             .map_init(
@@ -449,7 +450,8 @@ impl Amplifier {
                     }
                     let (atom, dot) = self.matcher.best_match(query, scratch);
                     let detail_coef = if roughness > 0.0 {
-                        let target = roughness * finest_octave_rms(raw, lo, octave);
+                        let oct = roughness * finest_octave_rms(raw, lo, octave);
+                        let target = (oct * oct + floor * floor).sqrt();
                         let own = self.detail_rms[atom];
                         if own > 0.0 {
                             (target / own).min(MAX_DETAIL_PER_RELIEF * norm)
@@ -666,7 +668,12 @@ impl Amplifier {
             i64::from(self.levers.passes),
         );
         let elevation = if self.levers.breach > 0 {
-            breach_pits(&raw, (ext.row0, ext.col0), self.levers.breach as usize)
+            let rule = BreachRule {
+                radius: self.levers.breach as usize,
+                flat_radius: (self.levers.breach_flat.min(self.levers.breach)) as usize,
+                steep_rise: self.levers.steep_slope * RISE_REACH as f32 * parent_cell_m / 2.0,
+            };
+            breach_pits_with(&raw, (ext.row0, ext.col0), rule)
         } else {
             raw
         };

@@ -27,6 +27,10 @@ pub struct Levers {
     /// whatever the matched atom's own detail-to-relief ratio, which belongs to the exemplar's
     /// scale and not to the level's. 0: the detail is scaled by the patch's relief `P_s`.
     pub roughness: f32,
+    /// With [`Levers::roughness`] above 0, a floor under the detail RMS, metres at 1 km cells:
+    /// the detail RMS is `√((roughness·octave)² + (floor·(cell/1 km)^0.7)²)` (`cell`: this level's
+    /// cell size). Plains carry micro-relief that their smooth coarse octaves do not announce.
+    pub floor_m: f32,
     /// Up-sampling kernel of the elevation's residual correction.
     pub kernel: KernelKind,
     /// Number of residual-correction passes of the elevation.
@@ -35,6 +39,12 @@ pub struct Levers {
     /// [`breach_pits`](crate::analysis::breach::breach_pits) gives every pit of the level's
     /// output; 0: no breaching.
     pub breach: u32,
+    /// The reach of the channels of pits in flat terrain (below [`Levers::steep_slope`]), at most
+    /// [`Levers::breach`]; 0 leaves them (basins of plains are real more often than not).
+    pub breach_flat: u32,
+    /// Slope (m/m) from a pit to the highest cell within
+    /// [`RISE_REACH`](crate::analysis::breach::RISE_REACH) cells that makes the pit steep.
+    pub steep_slope: f32,
     /// Multiply each atom's detail by the parent's local slope over its patch's mean slope
     /// (interpolated to the pixel, at most 3): flat valley floors get little detail, steep slopes
     /// more.
@@ -48,17 +58,21 @@ pub struct Levers {
 }
 
 impl Default for Levers {
-    /// The served amplifier: detail amplitude from the parent's finest octave (0.58), Kaiser-6
-    /// correction in two passes, pits breached within 6 cells.
+    /// The served amplifier: detail amplitude from the parent's finest octave (0.58) over a floor
+    /// of 3 m at 1 km cells; Kaiser-6 correction in two passes; pits breached within 16 cells
+    /// where the terrain rises at 5 % or more around them, within 4 cells on flats.
     fn default() -> Self {
         Levers {
             consistent_split: false,
             parent_smooth: false,
             blend_power: 1,
             roughness: 0.58,
+            floor_m: 3.0,
             kernel: KernelKind::Kaiser6,
             passes: 2,
-            breach: 6,
+            breach: 16,
+            breach_flat: 4,
+            steep_slope: 0.05,
             slope_mod: false,
             sparsity: 0,
         }
@@ -75,9 +89,12 @@ impl Levers {
             parent_smooth: false,
             blend_power: 1,
             roughness: 0.0,
+            floor_m: 0.0,
             kernel: KernelKind::CatmullRom,
             passes: 4,
             breach: 0,
+            breach_flat: 0,
+            steep_slope: 0.0,
             slope_mod: false,
             sparsity: 0,
         }
@@ -86,7 +103,8 @@ impl Levers {
     /// Parses a comma-separated list of changes applied in order to [`Levers::default`]:
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
-    /// `passes=N`, `breach=N`, `sparsity=S` (0: the dictionary's).
+    /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
+    /// pits), `floor=M`, `sparsity=S` (0: the dictionary's).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -115,10 +133,16 @@ impl Levers {
                 "split" => l.consistent_split = on,
                 "parent" => l.parent_smooth = on,
                 "slopemod" => l.slope_mod = on,
+                "floor" => l.floor_m = num(0.0, 100.0)? as f32,
                 "power" => l.blend_power = num(1.0, 8.0)? as u32,
                 "rough" => l.roughness = num(0.0, 4.0)? as f32,
                 "passes" => l.passes = num(0.0, 12.0)? as u32,
-                "breach" => l.breach = num(0.0, 32.0)? as u32,
+                "breach" => {
+                    l.breach = num(0.0, 32.0)? as u32;
+                    l.breach_flat = l.breach_flat.min(l.breach);
+                }
+                "flat" => l.breach_flat = num(0.0, 32.0)? as u32,
+                "steep" => l.steep_slope = num(0.0, 10.0)? as f32,
                 "sparsity" => l.sparsity = num(0.0, MAX_AMPLIFY_SPARSITY as f64)? as u32,
                 "kernel" => {
                     l.kernel = match value {

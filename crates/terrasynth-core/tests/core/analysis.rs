@@ -691,7 +691,10 @@ fn drainage_density_of_an_eastward_plane() {
 // Bounded pit breaching
 // ---------------------------------------------------------------------------------------------
 
-use terrasynth_core::analysis::breach::{breach_margin, breach_pits, breach_pits_naive};
+use terrasynth_core::analysis::breach::{
+    breach_margin, breach_pits, breach_pits_naive, breach_pits_naive_with, breach_pits_with,
+    BreachRule,
+};
 
 /// Rough random terrain: a tilt plus noise, rounded to 1/4 m so that ties (flats) occur.
 fn rough_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
@@ -723,6 +726,27 @@ proptest! {
         let slow = breach_pits_naive(&z, (r0, c0), radius);
         prop_assert_eq!(fast.dim(), slow.dim());
         prop_assert!(fast.iter().zip(slow.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+
+    /// With a reach per pit (steep pits far, flat pits near or not at all), the Dijkstra
+    /// version still equals the reference bit for bit, and stays window-invariant.
+    #[test]
+    fn breach_rule_matches_naive_and_is_window_invariant(
+        rows in 14usize..30, cols in 14usize..30, radius in 2usize..5, flat in 0usize..3,
+        rise in 0.0f32..4.0, seed in any::<u64>(), r0 in 0usize..4, c0 in 0usize..4) {
+        let rule = BreachRule { radius, flat_radius: flat.min(radius), steep_rise: rise };
+        let z = rough_terrain(rows, cols, seed);
+        let fast = breach_pits_with(&z, (3, -4), rule);
+        let slow = breach_pits_naive_with(&z, (3, -4), rule);
+        prop_assert_eq!(fast.dim(), slow.dim());
+        prop_assert!(fast.iter().zip(slow.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        let m = breach_margin(radius);
+        let sub = z.slice(ndarray::s![r0.., c0..]).to_owned();
+        prop_assume!(sub.nrows() > 2 * m && sub.ncols() > 2 * m);
+        let part = breach_pits_with(&sub, (3 + r0 as i64, -4 + c0 as i64), rule);
+        for ((r, c), v) in part.indexed_iter() {
+            prop_assert_eq!(v.to_bits(), fast[[r + r0, c + c0]].to_bits(), "({}, {})", r, c);
+        }
     }
 
     /// A cell's result depends only on its neighbourhood: breaching a sub-window (with its global
@@ -761,6 +785,39 @@ proptest! {
             }
         }
     }
+}
+
+#[test]
+fn breach_rule_leaves_flat_pits_and_cuts_steep_ones() {
+    // Two pits 2 m deep below their 1-cell rims, both drainable within 3 cells: one on a plain
+    // (nothing within 2 cells rises more than 2 m above it), one at the foot of a 50 m wall.
+    let mut z = Array2::from_elem((60, 70), 100.0f32);
+    for c in 0..70 {
+        z[[28, c]] = 100.0 - 0.5 * c as f32; // a channel falling east along row 28
+    }
+    z[[24, 22]] = 98.0; // flat pit: its rim is the 100 m plain
+    z[[24, 46]] = 98.0; // steep pit: a wall rises behind it
+    for r in 21..24 {
+        for c in 44..49 {
+            z[[r, c]] = 150.0;
+        }
+    }
+    let rule = BreachRule {
+        radius: 8,
+        flat_radius: 0,
+        steep_rise: 20.0,
+    };
+    let m = breach_margin(8);
+    let out = breach_pits_with(&z, (0, 0), rule);
+    assert_eq!(out[[24 - m, 22 - m]], 98.0);
+    let uniform = breach_pits(&z, (0, 0), 8);
+    // Uniformly, both pits get a channel: some cell around each is lowered.
+    let lowered = |a: &Array2<f32>, r: usize, c: usize| {
+        (r - 1..=r + 1).any(|rr| (c - 1..=c + 1).any(|cc| a[[rr - m, cc - m]] < z[[rr, cc]]))
+    };
+    assert!(lowered(&uniform, 24, 22) && lowered(&uniform, 24, 46));
+    assert!(!lowered(&out, 24, 22), "the flat pit is left");
+    assert!(lowered(&out, 24, 46), "the steep pit is breached");
 }
 
 #[test]
