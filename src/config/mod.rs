@@ -194,7 +194,8 @@ impl Default for ServerConfig {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct DictionaryConfig {
-    /// Exemplars: `embedded:tienshan` or GeoTIFF paths (relative to the world file).
+    /// Exemplars: `embedded:tienshan`, `embedded:carrizo` or GeoTIFF paths (relative to the
+    /// world file).
     pub exemplars: Vec<String>,
     /// Number of atoms.
     pub atoms: usize,
@@ -229,6 +230,8 @@ impl Default for DictionaryConfig {
 
 /// The name of the embedded Tien Shan raster in `base` and `exemplars`.
 pub const EMBEDDED_TIENSHAN: &str = "embedded:tienshan";
+/// The name of the embedded Carrizo Plain lidar (2 m, EPSG:26911) in `base` and `exemplars`.
+pub const EMBEDDED_CARRIZO: &str = "embedded:carrizo";
 
 /// One world file.
 #[derive(Clone, Debug, Deserialize, PartialEq)]

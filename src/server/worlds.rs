@@ -20,7 +20,7 @@ use terrasynth_store::{ResolvedWorld, Store, Stored};
 use terrasynth_tiles::{DictionaryBand, TileError, World, WorldParts};
 
 use super::error::StartupError;
-use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_TIENSHAN};
+use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_CARRIZO, EMBEDDED_TIENSHAN};
 
 /// The worlds a server serves, by name.
 pub type Worlds = BTreeMap<String, Arc<World>>;
@@ -36,6 +36,9 @@ fn world_error(world: &WorldConfig) -> impl Fn(String) -> StartupError + '_ {
 fn load_raster(spec: &str, dir: &Path) -> Result<Grid, String> {
     if spec == EMBEDDED_TIENSHAN {
         return embedded::tienshan().map_err(|e| format!("embedded raster: {e}"));
+    }
+    if spec == EMBEDDED_CARRIZO {
+        return embedded::carrizo().map_err(|e| format!("embedded raster: {e}"));
     }
     let path = dir.join(spec);
     read_geotiff_file(&path, &ReadLimits::default()).map_err(|e| format!("{}: {e}", path.display()))

@@ -13,7 +13,8 @@ use ndarray::Array2;
 use terrasynth_core::analysis::ppa::{self, Features, PpaParams};
 use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::LandscapeConfig;
-use terrasynth_core::raster::{CellSizes, Georef, Grid};
+use terrasynth_core::raster::reproject::to_geographic;
+use terrasynth_core::raster::{CellSizes, Crs, Georef, Grid};
 use terrasynth_core::synth::{check_bands, Amplifier, Levers, Window, ZoomBand};
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
@@ -34,7 +35,7 @@ pub struct WorldParts {
     pub title: String,
     /// Attribution shown by map clients.
     pub attribution: String,
-    /// The georeferenced base raster (EPSG:4326 or EPSG:3857).
+    /// The georeferenced base raster (EPSG:4326, EPSG:3857 or projected: reprojected).
     pub base: Grid,
     /// Native zoom of the base; `None` derives it from the base's cell size.
     pub z_base: Option<u8>,
@@ -169,7 +170,13 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
 
 impl World {
     /// Builds a world from its parts (resolving `z_base` from the base's cell size when absent).
-    pub fn new(parts: WorldParts) -> Result<World, TileError> {
+    /// A base in a projected CRS (UTM…) is first reprojected onto EPSG:4326
+    /// ([`terrasynth_core::raster::reproject::to_geographic`]).
+    pub fn new(mut parts: WorldParts) -> Result<World, TileError> {
+        if matches!(parts.base.georef.crs, Crs::Projected(_)) {
+            parts.base =
+                to_geographic(&parts.base).map_err(|e| TileError::Raster(e.to_string()))?;
+        }
         let extent = Extent::of_base(&parts.base, parts.z_base, parts.max_zoom)?;
         parts.landscape.validate()?;
         let levers = Levers {
