@@ -10,6 +10,7 @@ use serde::Deserialize;
 use thiserror::Error;
 
 use terrasynth_core::dictionary::MatchWeights;
+use terrasynth_core::synth::{check_bands, ZoomBand};
 
 /// The embedded copy of `config/default.toml`.
 pub const DEFAULT_TOML: &str = include_str!("../../config/default.toml");
@@ -193,7 +194,8 @@ impl Default for ServerConfig {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct DictionaryConfig {
-    /// Exemplars: `embedded:tienshan` or GeoTIFF paths (relative to the world file).
+    /// Exemplars: `embedded:tienshan`, `embedded:carrizo` or GeoTIFF paths (relative to the
+    /// world file).
     pub exemplars: Vec<String>,
     /// Number of atoms.
     pub atoms: usize,
@@ -203,6 +205,9 @@ pub struct DictionaryConfig {
     pub stride: usize,
     /// Seed.
     pub seed: u64,
+    /// The zooms this dictionary amplifies, `"FIRST-LAST"` or `"ZOOM"` (only in
+    /// `[[dictionaries]]`, where it is required).
+    pub zooms: Option<String>,
     /// Real vegetation rasters replacing the niche-model layer of a species: species name → one
     /// GeoTIFF path per exemplar (same order, same grid as the exemplar; `""` keeps the derived
     /// layer for that exemplar). Densities 0–1.
@@ -217,6 +222,7 @@ impl Default for DictionaryConfig {
             patch: 16,
             stride: 8,
             seed: 1,
+            zooms: None,
             vegetation_rasters: Default::default(),
         }
     }
@@ -224,6 +230,8 @@ impl Default for DictionaryConfig {
 
 /// The name of the embedded Tien Shan raster in `base` and `exemplars`.
 pub const EMBEDDED_TIENSHAN: &str = "embedded:tienshan";
+/// The name of the embedded Carrizo Plain lidar (2 m, EPSG:26911) in `base` and `exemplars`.
+pub const EMBEDDED_CARRIZO: &str = "embedded:carrizo";
 
 /// One world file.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -254,9 +262,14 @@ pub struct WorldConfig {
     /// Atoms per primitive of the amplifier, 1–8 (default: the dictionary's own sparsity).
     #[serde(default)]
     pub sparsity: Option<u32>,
-    /// Dictionary build settings.
+    /// Dictionary build settings of a world with one dictionary (`[dictionary]`: every amplified
+    /// zoom).
     #[serde(default)]
     pub dictionary: DictionaryConfig,
+    /// A dictionary per zoom band (`[[dictionaries]]`, each with `zooms`), instead of
+    /// `[dictionary]`: see [`terrasynth_core::synth::bands`] for the rule.
+    #[serde(default)]
+    pub dictionaries: Vec<DictionaryConfig>,
     /// Matching weights.
     #[serde(default)]
     pub weights: MatchWeights,
@@ -271,6 +284,57 @@ pub struct WorldConfig {
 
 fn default_max_zoom() -> u8 {
     16
+}
+
+impl WorldConfig {
+    /// The world's dictionaries with their zooms (`None`: every amplified zoom), as checked by
+    /// [`parse_world`]: `[[dictionaries]]` when given, else the one `[dictionary]`.
+    pub fn dictionary_bands(&self) -> Vec<(Option<ZoomBand>, &DictionaryConfig)> {
+        if self.dictionaries.is_empty() {
+            return vec![(None, &self.dictionary)];
+        }
+        self.dictionaries
+            .iter()
+            .map(|d| (d.zooms.as_deref().and_then(|z| z.parse().ok()), d))
+            .collect()
+    }
+}
+
+/// Checks the dictionary tables of world file `path`: `[dictionary]` (no `zooms`) or
+/// `[[dictionaries]]` (each with well-formed `zooms`, not overlapping, within `z_base` and
+/// `max_zoom` as far as the file gives them), not both.
+fn check_dictionaries(w: &WorldConfig, text: &str, path: &str) -> Result<(), ConfigError> {
+    let invalid = |m: String| ConfigError::Invalid(format!("{path}: {m}"));
+    if w.dictionary.zooms.is_some() {
+        return Err(invalid(
+            "dictionary.zooms: `zooms` belongs to [[dictionaries]] entries".into(),
+        ));
+    }
+    if w.dictionaries.is_empty() {
+        return Ok(());
+    }
+    let has_single = text
+        .parse::<toml::Table>()
+        .is_ok_and(|t| t.contains_key("dictionary"));
+    if has_single {
+        return Err(invalid(
+            "give either [dictionary] or [[dictionaries]], not both".into(),
+        ));
+    }
+    let mut bands = Vec::new();
+    for (i, d) in w.dictionaries.iter().enumerate() {
+        let Some(z) = &d.zooms else {
+            return Err(invalid(format!(
+                "dictionaries[{i}].zooms is missing (e.g. zooms = \"9-12\")"
+            )));
+        };
+        let band: ZoomBand = z
+            .parse()
+            .map_err(|e| invalid(format!("dictionaries[{i}].zooms: {e}")))?;
+        bands.push(Some(band));
+    }
+    check_bands(&bands, w.z_base.unwrap_or(0), w.max_zoom)
+        .map_err(|e| invalid(format!("dictionaries: {e}")))
 }
 
 /// The whole configuration.
@@ -318,6 +382,7 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
     w.landscape
         .validate()
         .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
+    check_dictionaries(&w, text, path)?;
     Ok(w)
 }
 
@@ -658,6 +723,76 @@ mod tests {
                 matches!(load(Some(&p), Vec::new()), Err(ConfigError::Invalid(m)) if m.contains(key)),
                 "{line}"
             );
+        }
+    }
+
+    #[test]
+    fn dictionaries_per_zoom_band_parse_and_bad_bands_are_named() {
+        let head = "name = \"w\"\nbase = \"b.tif\"\nz_base = 8\nmax_zoom = 16\n";
+        let w = parse_world(
+            &format!(
+                "{head}[[dictionaries]]\nzooms = \"9-14\"\natoms = 64\n\
+                 [[dictionaries]]\nzooms = \"15-16\"\nexemplars = [\"fine.tif\"]\npatch = 8\n"
+            ),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        let bands = w.dictionary_bands();
+        assert_eq!(bands.len(), 2);
+        assert_eq!(bands[0].0, Some(ZoomBand { first: 9, last: 14 }));
+        assert_eq!(bands[0].1.atoms, 64);
+        assert_eq!(bands[0].1.exemplars, vec![EMBEDDED_TIENSHAN.to_string()]);
+        assert_eq!(
+            bands[1].0,
+            Some(ZoomBand {
+                first: 15,
+                last: 16
+            })
+        );
+        assert_eq!(bands[1].1.exemplars, vec!["fine.tif".to_string()]);
+        assert_eq!(bands[1].1.patch, 8);
+        // One [dictionary]: one band over every amplified zoom, as before.
+        let one = parse_world(
+            &format!("{head}[dictionary]\natoms = 32\n"),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        let bands = one.dictionary_bands();
+        assert_eq!(bands.len(), 1);
+        assert_eq!((bands[0].0, bands[0].1.atoms), (None, 32));
+        for (tables, needle) in [
+            (
+                "[[dictionaries]]\nzooms = \"9-x\"\n",
+                "dictionaries[0].zooms: zooms `9-x`",
+            ),
+            (
+                "[[dictionaries]]\nzooms = \"9-12\"\n[[dictionaries]]\natoms = 8\n",
+                "dictionaries[1].zooms is missing",
+            ),
+            (
+                "[[dictionaries]]\nzooms = \"9-12\"\n[[dictionaries]]\nzooms = \"12-16\"\n",
+                "zooms 9-12 and 12-16 overlap",
+            ),
+            (
+                "[[dictionaries]]\nzooms = \"8-12\"\n",
+                "outside the amplified zooms 9-16",
+            ),
+            (
+                "[[dictionaries]]\nzooms = \"9-17\"\n",
+                "outside the amplified zooms 9-16",
+            ),
+            (
+                "[dictionary]\natoms = 8\n[[dictionaries]]\nzooms = \"9-12\"\n",
+                "either [dictionary] or [[dictionaries]]",
+            ),
+            ("[dictionary]\nzooms = \"9-12\"\n", "dictionary.zooms"),
+        ] {
+            let e = parse_world(&format!("{head}{tables}"), "w.toml", Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle) && e.contains("w.toml"), "{tables}: {e}");
         }
     }
 }

@@ -43,8 +43,34 @@ pub struct WorldInfo {
     pub layers: Vec<String>,
     /// Content ids of the synthesis chain's dictionaries.
     pub dictionaries: Vec<String>,
+    /// The synthesis chain's zoom bands: each dictionary with the zooms it was given (a world
+    /// with one dictionary: every amplified zoom).
+    pub dictionary_bands: Vec<DictionaryBandInfo>,
     /// TileJSON URL of each layer.
     pub tilejson: Vec<String>,
+}
+
+/// A dictionary of a world's chain and its zooms.
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct DictionaryBandInfo {
+    /// Content id of the dictionary.
+    pub id: String,
+    /// Its zooms, `"FIRST-LAST"` or `"ZOOM"`.
+    pub zooms: String,
+}
+
+fn bands(w: &World) -> Vec<DictionaryBandInfo> {
+    let every = terrasynth_core::synth::ZoomBand {
+        first: w.z_base().saturating_add(1).min(w.max_zoom()),
+        last: w.max_zoom(),
+    };
+    w.dictionary_bands()
+        .iter()
+        .map(|(zooms, id)| DictionaryBandInfo {
+            id: id.clone(),
+            zooms: zooms.unwrap_or(every).to_string(),
+        })
+        .collect()
 }
 
 fn info(w: &World, base: &str) -> WorldInfo {
@@ -60,6 +86,7 @@ fn info(w: &World, base: &str) -> WorldInfo {
         fill_m: w.fill_m(),
         layers: LAYERS.iter().map(|s| s.to_string()).collect(),
         dictionaries: w.dictionary_ids(),
+        dictionary_bands: bands(w),
         tilejson: LAYERS
             .iter()
             .map(|l| format!("{base}/tiles/{}/{l}.json", w.name()))

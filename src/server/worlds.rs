@@ -17,10 +17,10 @@ use terrasynth_core::dictionary::{Dictionary, ExemplarOptions, Learning};
 use terrasynth_core::landscape::exemplar_vegetation;
 use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
-use terrasynth_tiles::{TileError, World, WorldParts};
+use terrasynth_tiles::{DictionaryBand, TileError, World, WorldParts};
 
 use super::error::StartupError;
-use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_TIENSHAN};
+use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_CARRIZO, EMBEDDED_TIENSHAN};
 
 /// The worlds a server serves, by name.
 pub type Worlds = BTreeMap<String, Arc<World>>;
@@ -37,13 +37,15 @@ fn load_raster(spec: &str, dir: &Path) -> Result<Grid, String> {
     if spec == EMBEDDED_TIENSHAN {
         return embedded::tienshan().map_err(|e| format!("embedded raster: {e}"));
     }
+    if spec == EMBEDDED_CARRIZO {
+        return embedded::carrizo().map_err(|e| format!("embedded raster: {e}"));
+    }
     let path = dir.join(spec);
     read_geotiff_file(&path, &ReadLimits::default()).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// A stable name for the dictionary a world's settings produce.
-fn dictionary_alias(world: &WorldConfig) -> String {
-    let d = &world.dictionary;
+/// A stable name for the dictionary a world's settings `d` produce (one of its bands).
+fn dictionary_alias(world: &WorldConfig, d: &DictionaryConfig) -> String {
     let mut h = Sha256::new();
     h.update(format!(
         "v2|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
@@ -142,12 +144,14 @@ fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dicti
     Ok(d)
 }
 
-/// The world's dictionary from the store, building and storing it when absent (or unreadable).
+/// The dictionary of `world`'s settings `cfg` from the store, building and storing it when
+/// absent (or unreadable).
 fn world_dictionary(
     store: &Store,
     world: &WorldConfig,
+    cfg: &DictionaryConfig,
 ) -> Result<(Arc<Dictionary>, String), StartupError> {
-    let alias = dictionary_alias(world);
+    let alias = dictionary_alias(world, cfg);
     if let Some(id) = store.alias(&alias)? {
         match store.get_dictionary(&id) {
             Ok(Some(d)) => {
@@ -165,7 +169,7 @@ fn world_dictionary(
         }
     }
     tracing::info!(world = %world.name, "dictionary: not in the store; building it");
-    let d = build_dictionary(world, &world.dictionary).map_err(world_error(world))?;
+    let d = build_dictionary(world, cfg).map_err(world_error(world))?;
     let id = store.put_dictionary(&d)?;
     store.set_alias(&alias, &id)?;
     tracing::info!(world = %world.name, id = %id, "dictionary: stored");
@@ -199,7 +203,15 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
         let t = Instant::now();
         let base = load_raster(&wc.base, &wc.dir).map_err(world_error(wc))?;
         tracing::info!(world = %wc.name, rows = base.rows(), cols = base.cols(), "world: base loaded");
-        let (dictionary, dictionary_id) = world_dictionary(store, wc)?;
+        let mut dictionaries = Vec::new();
+        for (zooms, cfg) in wc.dictionary_bands() {
+            let (dictionary, id) = world_dictionary(store, wc, cfg)?;
+            dictionaries.push(DictionaryBand {
+                zooms,
+                dictionary,
+                id,
+            });
+        }
         let world = World::new(WorldParts {
             name: wc.name.clone(),
             title: if wc.title.is_empty() {
@@ -212,8 +224,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
             z_base: wc.z_base,
             max_zoom: wc.max_zoom,
             fill_m: wc.fill_m,
-            dictionary,
-            dictionary_id,
+            dictionaries,
             weights: wc.weights.clone(),
             cache_bytes: config.server.level_cache_bytes(config.worlds.len()),
             landscape: wc.landscape.clone(),
@@ -243,8 +254,15 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         z_base: None,
         max_zoom: def.max_zoom,
         fill_m: def.fill_m,
-        dictionary: resolved.dictionary,
-        dictionary_id: resolved.dictionary_id,
+        dictionaries: resolved
+            .dictionaries
+            .into_iter()
+            .map(|d| DictionaryBand {
+                zooms: d.zooms,
+                dictionary: d.dictionary,
+                id: d.id,
+            })
+            .collect(),
         weights: def.match_weights(),
         cache_bytes,
         landscape: resolved.landscape,

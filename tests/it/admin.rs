@@ -1530,3 +1530,154 @@ async fn features_of_a_world_as_geojson() {
         StatusCode::NOT_FOUND
     );
 }
+
+/// Builds a dictionary from a fresh exemplar of seed `seed` and returns its id.
+async fn build_small_dictionary(app: &axum::Router, name: &str, seed: u64) -> String {
+    let exemplar = upload_tiff(app, name, 96, 96, seed).await;
+    let (st, v) = send_json(
+        app,
+        json(
+            Method::POST,
+            "/admin/dictionaries",
+            serde_json::json!({"name": name, "exemplars": [exemplar], "atoms": 16, "patch": 16,
+                "stride": 8, "learning": "medoids:2", "seed": 3}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::ACCEPTED, "{v}");
+    let done = wait_job(app, v["id"].as_str().unwrap()).await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    done["result"].as_str().unwrap().to_string()
+}
+
+#[tokio::test]
+async fn api_worlds_take_a_dictionary_per_zoom_band() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let shallow = build_small_dictionary(&app, "shallow", 7).await;
+    let deep = build_small_dictionary(&app, "deep", 11).await;
+    assert_ne!(shallow, deep);
+    let (st, b) = send_json(
+        &app,
+        req(
+            Method::POST,
+            "/admin/exemplars?name=base",
+            Some("image/tiff"),
+            one_mountain_tiff(48, 48, 24.0, 24.0),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{b}");
+    let base = b["id"].as_str().unwrap().to_string();
+    // One world with the shallow dictionary everywhere, one with the deep dictionary from
+    // z_b + 2 on.
+    let (st, one) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds",
+            serde_json::json!({"name": "one", "base": base, "dictionaries": [shallow], "max_zoom": 12}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{one}");
+    let z = one["native_zoom"].as_u64().unwrap() as u8;
+    assert!(z + 2 <= 12, "native zoom {z}");
+    let bands = serde_json::json!([
+        {"id": shallow, "zooms": format!("{}", z + 1)},
+        {"id": deep, "zooms": format!("{}-12", z + 2)}
+    ]);
+    let (st, two) = send_json(
+        &app,
+        json(
+            Method::POST,
+            "/admin/worlds",
+            serde_json::json!({"name": "two", "base": base, "dictionaries": bands, "max_zoom": 12}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{two}");
+    assert_eq!(two["world"]["dictionaries"], bands);
+    let (st, info) = send_json(&app, get("/worlds/two")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(info["dictionaries"], serde_json::json!([shallow, deep]));
+    assert_eq!(info["dictionary_bands"], bands);
+    let (_, info) = send_json(&app, get("/worlds/one")).await;
+    assert_eq!(
+        info["dictionary_bands"],
+        serde_json::json!([{"id": shallow, "zooms": format!("{}-12", z + 1)}])
+    );
+    // Zooms up to the first band's: the same bytes as the one-dictionary world; deeper: other
+    // bytes (and other ETags everywhere: the chain differs).
+    let (lon, lat) = (74.1, 42.4);
+    for zz in [z, z + 1, z + 2, z + 3] {
+        let (x, y) = tile_of(lon, lat, zz);
+        let uri = |w: &str| format!("/tiles/{w}/elevation/{zz}/{x}/{y}.png");
+        let (st1, h1, a) = send(&app, get(&uri("one"))).await;
+        let (st2, h2, b) = send(&app, get(&uri("two"))).await;
+        assert_eq!((st1, st2), (StatusCode::OK, StatusCode::OK), "z{zz}");
+        assert_ne!(h1[header::ETAG], h2[header::ETAG], "z{zz}");
+        if zz <= z + 1 {
+            assert_eq!(a, b, "zoom {zz} is amplified by the same dictionary");
+        } else {
+            assert_ne!(a, b, "zoom {zz} is amplified by the deep band");
+        }
+    }
+    // The deep band's dictionary is in use.
+    let del = req(
+        Method::DELETE,
+        &format!("/admin/dictionaries/{deep}"),
+        None,
+        Vec::new(),
+    );
+    assert_eq!(send(&app, del).await.0, StatusCode::CONFLICT);
+    // Bad bands: 422 naming the field, nothing stored.
+    let before = store_files(dir.path());
+    let cases = [
+        (
+            serde_json::json!([{"id": shallow, "zooms": "9-12"}, {"id": deep, "zooms": "13-x"}]),
+            "dictionaries[1].zooms",
+        ),
+        (
+            serde_json::json!([{"id": shallow, "zooms": "12-9"}]),
+            "dictionaries[0].zooms",
+        ),
+        (
+            serde_json::json!([{"id": shallow, "zooms": format!("{}-11", z + 1)}, {"id": deep, "zooms": "11-12"}]),
+            "overlap",
+        ),
+        (
+            serde_json::json!([{"id": shallow, "zooms": format!("{}-12", z)}]),
+            "outside the amplified zooms",
+        ),
+        (
+            serde_json::json!([{"id": shallow, "zooms": "10-13"}]),
+            "outside the amplified zooms",
+        ),
+        (
+            serde_json::json!([shallow, {"id": deep, "zooms": "12"}]),
+            "every one must give its zooms",
+        ),
+        (
+            serde_json::json!([{"id": "nope", "zooms": "12"}]),
+            "dictionaries[0]: unknown dictionary",
+        ),
+        (
+            serde_json::json!([{"id": shallow, "zoom": "12"}]),
+            "dictionaries",
+        ),
+    ];
+    for (dictionaries, needle) in cases {
+        let body = serde_json::json!({"name": "bad", "base": base, "dictionaries": dictionaries,
+            "max_zoom": 12});
+        let (st, h, body) = send(&app, json(Method::POST, "/admin/worlds", body)).await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{dictionaries}");
+        let detail = problem_detail(st, &h, &body);
+        assert!(detail.contains(needle), "{dictionaries}: `{detail}`");
+        assert_eq!(
+            store_files(dir.path()),
+            before,
+            "{dictionaries} wrote to the store"
+        );
+    }
+}

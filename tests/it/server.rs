@@ -814,3 +814,49 @@ fn splat_weights_sum_to_255_and_vanish_outside_their_ranges() {
         cfg.materials[fallback].name
     );
 }
+
+/// A world whose base is in a projected CRS (the committed UTM 11N lidar) is reprojected onto
+/// the globe: it lies over the Carrizo Plain and its native tiles carry the lidar's heights.
+#[test]
+fn a_world_on_a_utm_base_lies_where_the_data_lies() {
+    let base = terrasynth_core::raster::embedded::carrizo().unwrap();
+    let world = World::new(terrasynth_tiles::WorldParts {
+        name: "carrizo".into(),
+        title: "Carrizo".into(),
+        attribution: "lidar".into(),
+        base,
+        z_base: None,
+        max_zoom: 18,
+        fill_m: 0.0,
+        dictionaries: vec![terrasynth_tiles::DictionaryBand::every_zoom(
+            small_dictionary_with_vegetation(4),
+            "d",
+        )],
+        weights: MatchWeights::default(),
+        cache_bytes: 16 << 20,
+        landscape: LandscapeConfig::tienshan(),
+        center: None,
+        sparsity: None,
+    })
+    .unwrap();
+    let [w, s, e, n] = world.bounds();
+    assert!(
+        (-119.9..-119.8).contains(&w) && (-119.9..-119.8).contains(&e),
+        "{w} {e}"
+    );
+    assert!(
+        (35.2..35.4).contains(&s) && (35.2..35.4).contains(&n),
+        "{s} {n}"
+    );
+    // 2 m cells at 35.3°N: zoom 16 has 1.9 m pixels there.
+    assert!(world.z_base() >= 15, "native zoom {}", world.z_base());
+    let z = world.z_base();
+    let (x, y) = terrasynth_test_support::tile_of((w + e) / 2.0, (s + n) / 2.0, z);
+    let t = world.elevation_tile(z, x, y).unwrap();
+    let inside: Vec<f32> = t.iter().copied().filter(|&v| v != 0.0).collect();
+    assert!(inside.len() > 1000);
+    assert!(
+        inside.iter().all(|v| (628.0..704.0).contains(v)),
+        "heights of the lidar"
+    );
+}

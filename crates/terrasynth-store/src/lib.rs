@@ -43,7 +43,9 @@ pub use budget::{MemoryBudget, Reservation};
 pub use catalog::{Catalog, DictionaryInfo, ExemplarInfo, Statistics};
 pub use error::{ServiceError, StoreError};
 pub use jobs::{DictionaryRequest, Job, JobRequest, JobSettings, JobState};
-pub use service::{Catalogue, ResolvedWorld};
+pub use service::{Catalogue, ResolvedDictionary, ResolvedWorld};
 pub use sketch::SketchRequest;
 pub use store::{write_atomically, ObjectKind, Store, Stored, MAX_DICTIONARY_BYTES, STORE_VERSION};
-pub use worlds::{WorldDefaults, WorldDefinition, WorldRequest};
+pub use worlds::{
+    DictionaryBandRef, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest,
+};

@@ -21,6 +21,7 @@ use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_core::names::is_content_id;
 use terrasynth_core::raster::{Grid, LayeredRaster};
 use terrasynth_core::synth::sketch::SizeLimits;
+use terrasynth_core::synth::ZoomBand;
 
 use crate::catalog::{exemplar_info, lock, Catalog, DictionaryInfo, ExemplarInfo};
 use crate::error::{ServiceError, StoreError};
@@ -30,7 +31,7 @@ use crate::jobs::{
 };
 use crate::sketch::SketchRequest;
 use crate::store::{ObjectKind, Store, Stored};
-use crate::worlds::{check_name, WorldDefaults, WorldDefinition, WorldRequest};
+use crate::worlds::{check_name, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest};
 
 /// Most exemplars one build may read.
 pub const MAX_BUILD_EXEMPLARS: usize = 64;
@@ -51,12 +52,21 @@ pub struct ResolvedWorld {
     pub definition: WorldDefinition,
     /// The base raster's elevation.
     pub base: Grid,
+    /// The dictionaries of the chain, in the definition's order.
+    pub dictionaries: Vec<ResolvedDictionary>,
+    /// The landscape (defaults with the definition's materials and species).
+    pub landscape: LandscapeConfig,
+}
+
+/// One dictionary of a resolved world's chain.
+#[derive(Clone, Debug)]
+pub struct ResolvedDictionary {
+    /// Its zooms (`None`: every amplified zoom).
+    pub zooms: Option<ZoomBand>,
     /// The dictionary.
     pub dictionary: Arc<Dictionary>,
     /// Its content id.
-    pub dictionary_id: String,
-    /// The landscape (defaults with the definition's materials and species).
-    pub landscape: LandscapeConfig,
+    pub id: String,
 }
 
 /// The catalogue service.
@@ -363,7 +373,7 @@ impl Catalogue {
             None => self
                 .stored_worlds()?
                 .into_iter()
-                .find(|(_, d)| d.dictionaries.iter().any(|x| x == id))
+                .find(|(_, d)| d.dictionaries.iter().any(|x| x.id() == id))
                 .map(|(_, d)| d.name),
         };
         if let Some(w) = user {
@@ -431,7 +441,7 @@ impl Catalogue {
         if !is_content_id(&def.base) {
             return Err(unknown_base());
         }
-        let dict_id = def.dictionary()?.to_string();
+        let bands = def.dictionary_bands()?;
         let payload = match self.store.get_object(ObjectKind::Exemplar, &def.base) {
             Ok(p) => p.ok_or_else(unknown_base)?,
             Err(StoreError::BadName(_)) => return Err(unknown_base()),
@@ -441,15 +451,22 @@ impl Catalogue {
         let base = raster
             .elevation()
             .ok_or_else(|| ServiceError::Invalid("the base has no elevation".into()))?;
-        let dictionary = self
-            .store
-            .get_dictionary(&dict_id)?
-            .ok_or_else(|| ServiceError::Invalid(format!("unknown dictionary `{dict_id}`")))?;
+        let mut dictionaries = Vec::with_capacity(bands.len());
+        for (zooms, id) in bands {
+            let dictionary = self
+                .store
+                .get_dictionary(id)?
+                .ok_or_else(|| ServiceError::Invalid(format!("unknown dictionary `{id}`")))?;
+            dictionaries.push(ResolvedDictionary {
+                zooms,
+                dictionary: Arc::new(dictionary),
+                id: id.to_string(),
+            });
+        }
         Ok(ResolvedWorld {
             definition: def.clone(),
             base,
-            dictionary: Arc::new(dictionary),
-            dictionary_id: dict_id,
+            dictionaries,
             landscape,
         })
     }
@@ -510,7 +527,12 @@ impl Catalogue {
             WorldRequest {
                 name: request.name.clone(),
                 base: String::new(),
-                dictionaries: request.dictionaries.clone(),
+                dictionaries: request
+                    .dictionaries
+                    .iter()
+                    .cloned()
+                    .map(WorldDictionary::Id)
+                    .collect(),
                 max_zoom: None,
                 weights: None,
                 materials: None,
@@ -522,8 +544,11 @@ impl Catalogue {
             },
             &self.defaults,
         )?;
-        let dict = def.dictionary()?;
-        if self.catalog.dictionary(dict).is_none() {
+        if let Some((_, dict)) = def
+            .dictionary_bands()?
+            .into_iter()
+            .find(|(_, d)| self.catalog.dictionary(d).is_none())
+        {
             return Err(ServiceError::Invalid(format!(
                 "unknown dictionary `{dict}`"
             )));

@@ -11,6 +11,7 @@ use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::{LandscapeConfig, Material, Species};
 use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
 use terrasynth_core::raster::georef::{is_map_point, MAX_MERCATOR_LAT};
+use terrasynth_core::synth::{check_bands, ZoomBand};
 
 use crate::error::ServiceError;
 
@@ -21,8 +22,9 @@ pub struct WorldDefinition {
     pub name: String,
     /// Exemplar id of the base (the coarse DEM or sketch).
     pub base: String,
-    /// Dictionary ids of the synthesis chain.
-    pub dictionaries: Vec<String>,
+    /// Dictionaries of the synthesis chain: ids (every amplified zoom) or `{"id", "zooms"}`
+    /// bands.
+    pub dictionaries: Vec<WorldDictionary>,
     /// Deepest zoom served.
     pub max_zoom: u8,
     /// Matching weights by term or layer name.
@@ -73,8 +75,11 @@ pub struct WorldRequest {
     pub name: String,
     /// Exemplar id of the base.
     pub base: String,
-    /// Dictionary ids of the synthesis chain (currently exactly one).
-    pub dictionaries: Vec<String>,
+    /// The synthesis chain's dictionaries: one dictionary id (used at every amplified zoom), or
+    /// one `{"id", "zooms"}` object per zoom band (`zooms`: `"FIRST-LAST"` or `"ZOOM"`; bands lie
+    /// above the native zoom and at most `max_zoom` and do not overlap; a zoom no band covers
+    /// uses the nearest shallower band, zooms below the first band the first band).
+    pub dictionaries: Vec<WorldDictionary>,
     /// Deepest zoom served (default: the default world's).
     #[serde(default)]
     pub max_zoom: Option<u8>,
@@ -107,6 +112,52 @@ pub struct WorldRequest {
     /// highest-relief region).
     #[serde(default)]
     pub center: Option<[f64; 2]>,
+}
+
+/// One entry of a world's `dictionaries`: a bare dictionary id (every amplified zoom; worlds
+/// stored before zoom bands hold these) or a band.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(untagged, try_from = "serde_json::Value")]
+pub enum WorldDictionary {
+    /// A dictionary id: the world's one dictionary, used at every amplified zoom.
+    Id(String),
+    /// A dictionary for a band of zooms.
+    Band(DictionaryBandRef),
+}
+
+/// A dictionary and the zooms it amplifies.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DictionaryBandRef {
+    /// Dictionary id.
+    pub id: String,
+    /// Zooms, `"FIRST-LAST"` or `"ZOOM"`, e.g. `"9-12"`.
+    #[schema(example = "9-12")]
+    pub zooms: String,
+}
+
+impl TryFrom<serde_json::Value> for WorldDictionary {
+    type Error = String;
+
+    fn try_from(v: serde_json::Value) -> Result<Self, String> {
+        match v {
+            serde_json::Value::String(id) => Ok(WorldDictionary::Id(id)),
+            v @ serde_json::Value::Object(_) => serde_json::from_value(v)
+                .map(WorldDictionary::Band)
+                .map_err(|e| format!("dictionaries: a band is {{\"id\", \"zooms\"}}: {e}")),
+            _ => Err("dictionaries: each entry is a dictionary id or {\"id\", \"zooms\"}".into()),
+        }
+    }
+}
+
+impl WorldDictionary {
+    /// The dictionary id.
+    pub fn id(&self) -> &str {
+        match self {
+            WorldDictionary::Id(id) => id,
+            WorldDictionary::Band(b) => &b.id,
+        }
+    }
 }
 
 /// Longest accepted title, characters.
@@ -236,19 +287,46 @@ impl WorldDefinition {
             ));
         }
         def.landscape(&d.landscape)?;
+        def.band_zooms()?;
         Ok(def)
     }
 
-    /// The one dictionary of the synthesis chain.
-    pub fn dictionary(&self) -> Result<&str, ServiceError> {
-        match self.dictionaries.as_slice() {
-            [id] if is_content_id(id) => Ok(id),
-            [id] => Err(ServiceError::Invalid(format!("unknown dictionary `{id}`"))),
-            other => Err(ServiceError::Invalid(format!(
-                "a world takes exactly one dictionary for now ({} given)",
-                other.len()
-            ))),
+    /// The zooms of each of the chain's dictionaries (`None`: every amplified zoom), checked as
+    /// far as the definition tells: at least one, well-formed `zooms`, bands at most `max_zoom`
+    /// and not overlapping, a bare id only alone. (Whether bands lie above the native zoom is
+    /// checked when the world is made, since the base decides it.)
+    pub fn band_zooms(&self) -> Result<Vec<Option<ZoomBand>>, ServiceError> {
+        let mut out = Vec::with_capacity(self.dictionaries.len());
+        for (i, d) in self.dictionaries.iter().enumerate() {
+            out.push(match d {
+                WorldDictionary::Id(_) => None,
+                WorldDictionary::Band(b) => {
+                    Some(b.zooms.parse::<ZoomBand>().map_err(|e| {
+                        ServiceError::Invalid(format!("dictionaries[{i}].zooms: {e}"))
+                    })?)
+                }
+            });
         }
+        check_bands(&out, 0, self.max_zoom)
+            .map_err(|e| ServiceError::Invalid(format!("dictionaries: {e}")))?;
+        Ok(out)
+    }
+
+    /// The chain's dictionaries with their zooms ([`WorldDefinition::band_zooms`]), their ids
+    /// well-formed.
+    pub fn dictionary_bands(&self) -> Result<Vec<(Option<ZoomBand>, &str)>, ServiceError> {
+        let zooms = self.band_zooms()?;
+        let mut out = Vec::with_capacity(zooms.len());
+        for (i, (d, z)) in self.dictionaries.iter().zip(zooms).enumerate() {
+            if !is_content_id(d.id()) {
+                return Err(ServiceError::Invalid(format!(
+                    "dictionaries[{i}]: unknown dictionary `{}`",
+                    d.id()
+                )));
+            }
+            out.push((z, d.id()));
+        }
+        Ok(out)
     }
 
     /// The world's landscape: `defaults` with this definition's materials (when any) and

@@ -131,6 +131,26 @@ pub fn mini_world(
     max_zoom: u8,
     cache_bytes: u64,
 ) -> terrasynth_tiles::World {
+    mini_world_bands(
+        heights,
+        vec![terrasynth_tiles::DictionaryBand::every_zoom(
+            dictionary,
+            dictionary_id,
+        )],
+        max_zoom,
+        cache_bytes,
+    )
+    .expect("a valid mini world")
+}
+
+#[cfg(feature = "tiles")]
+/// [`mini_world`] with a dictionary per zoom band.
+pub fn mini_world_bands(
+    heights: Array2<f32>,
+    dictionaries: Vec<terrasynth_tiles::DictionaryBand>,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
     use terrasynth_core::raster::{Crs, Georef, Grid};
     let base = Grid::new(
         heights,
@@ -150,15 +170,13 @@ pub fn mini_world(
         z_base: Some(8),
         max_zoom,
         fill_m: 0.0,
-        dictionary,
-        dictionary_id: dictionary_id.into(),
+        dictionaries,
         weights: terrasynth_core::dictionary::MatchWeights::default(),
         cache_bytes,
         landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
         center: None,
         sparsity: None,
     })
-    .expect("a valid mini world")
 }
 
 /// The XYZ tile `(x, y)` holding longitude/latitude `(lon, lat)` at zoom `z`: the standard

@@ -1,5 +1,5 @@
 //! The elevation pyramid: the base raster resampled to Web Mercator at the native zoom `z_b`,
-//! averaged overviews below it, and one amplification level per zoom above it.
+//! averaged overviews below it, and one amplification level per zoom above it, with the dictionary of the zoom's band.
 //!
 //! Tile `(z, x, y)` is the window `[256x, 256x+256) × [256y, 256y+256)` of zoom `z`'s global pixel
 //! plane. Zoom `z_b` is sampled bilinearly from the base (pixels outside the base get the world's
@@ -17,6 +17,7 @@ use ndarray::Array2;
 use terrasynth_core::raster::{box2, Grid};
 use terrasynth_core::synth::{Amplifier, Field, Window};
 
+use crate::chain::Chain;
 use crate::error::TileError;
 use crate::extent::Extent;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
@@ -27,7 +28,7 @@ pub struct ElevationLevels {
     base: Grid,
     fill_m: f32,
     extent: Extent,
-    amplifier: Amplifier,
+    amplifiers: Chain<Amplifier>,
     cache: LevelCache<Array2<f32>>,
     /// Level tiles synthesized by amplification (zooms above `z_b`).
     pub tiles_synthesized: AtomicU64,
@@ -44,20 +45,20 @@ impl std::fmt::Debug for ElevationLevels {
 }
 
 impl ElevationLevels {
-    /// Levels over `base` (outside it: `fill_m`), amplified with `amplifier`, cached in at most
-    /// `cache_bytes` bytes.
+    /// Levels over `base` (outside it: `fill_m`), each zoom amplified with its band's amplifier
+    /// of `amplifiers`, cached in at most `cache_bytes` bytes.
     pub fn new(
         base: Grid,
         fill_m: f32,
         extent: Extent,
-        amplifier: Amplifier,
+        amplifiers: Chain<Amplifier>,
         cache_bytes: u64,
     ) -> Self {
         ElevationLevels {
             base,
             fill_m,
             extent,
-            amplifier,
+            amplifiers,
             cache: LevelCache::new(cache_bytes),
             tiles_synthesized: AtomicU64::new(0),
             synthesis_micros: AtomicU64::new(0),
@@ -128,11 +129,10 @@ impl ElevationLevels {
                 self.tile(z + 1, cx, cy).map(Some)
             });
         }
-        let need = self.amplifier.parent_window_for(w);
+        let amplifier = self.amplifiers.at(z);
+        let need = amplifier.parent_window_for(w);
         let parent = Field::elevation_only(need, self.window(z - 1, need)?);
-        let field = self
-            .amplifier
-            .amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
+        let field = amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
         self.tiles_synthesized.fetch_add(1, Ordering::Relaxed);
         Ok(field.elevation)
     }

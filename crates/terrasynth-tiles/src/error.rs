@@ -5,8 +5,8 @@
 use thiserror::Error;
 
 use terrasynth_core::landscape::LandscapeError;
-use terrasynth_core::synth::SynthError;
 use terrasynth_core::synth::Window;
+use terrasynth_core::synth::{BandError, SynthError};
 
 /// An error addressing, computing, encoding or decoding a tile, or building a world.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -50,6 +50,9 @@ pub enum TileError {
     /// The world covers too many native-zoom pixels for its whole-world layers.
     #[error("the native-zoom window {0} is too large for whole-world layers")]
     WorldTooLarge(Window),
+    /// The world's dictionary bands are inconsistent with its zooms.
+    #[error("dictionaries: {0}")]
+    Bands(#[from] BandError),
     /// Amplification failed.
     #[error(transparent)]
     Synth(#[from] SynthError),

@@ -36,6 +36,26 @@ pub fn lonlat_bounds(g: &Grid) -> [f64; 4] {
             let (e, n) = mercator_to_lonlat(e, n);
             [w, s, e, n]
         }
+        // World bases are reprojected onto EPSG:4326 first ([`crate::World::new`]); elsewhere,
+        // the box of the corners.
+        Crs::Projected(_) => {
+            let corners: Vec<(f64, f64)> = [(w, s), (w, n), (e, s), (e, n)]
+                .iter()
+                .filter_map(|&(x, y)| g.georef.crs.to_lonlat(x, y))
+                .collect();
+            let f = |pick: fn(&(f64, f64)) -> f64, min: bool| {
+                corners.iter().map(pick).fold(
+                    if min { f64::MAX } else { f64::MIN },
+                    if min { f64::min } else { f64::max },
+                )
+            };
+            [
+                f(|p| p.0, true),
+                f(|p| p.1, true),
+                f(|p| p.0, false),
+                f(|p| p.1, false),
+            ]
+        }
     }
 }
 
@@ -81,6 +101,10 @@ pub fn relief_center(base: &Grid) -> Option<[f64; 2]> {
         Crs::Epsg4326 => [x, y],
         Crs::Epsg3857 => {
             let (lon, lat) = mercator_to_lonlat(x, y);
+            [lon, lat]
+        }
+        Crs::Projected(_) => {
+            let (lon, lat) = base.georef.crs.to_lonlat(x, y)?;
             [lon, lat]
         }
     })

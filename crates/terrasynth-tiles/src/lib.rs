@@ -4,7 +4,7 @@
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
-//! ([`world`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
+//! ([`world`]) with a dictionary per zoom band ([`chain`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
 //! TileJSON ([`tilejson`]) and styles ([`style`]). Computations are coalesced and cancelled
 //! cooperatively when nobody waits for them any more ([`cancel`]).
 //!
@@ -14,6 +14,7 @@
 
 pub mod base_layers;
 pub mod cancel;
+pub mod chain;
 pub mod drainage;
 pub mod elevation;
 pub mod encode;
@@ -32,6 +33,7 @@ pub mod vegetation;
 pub mod world;
 
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
+pub use chain::{Chain, DictionaryBand};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
     encode_mapbox_png, encode_rgba_png, encode_terrarium_png, NAN_FILL_HEIGHT_M,

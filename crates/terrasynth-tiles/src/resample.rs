@@ -104,6 +104,9 @@ pub fn mercator_window_from_grid(
                     wrapped_tap(lon, g.west, g.pixel_width, src_cols, 360.0)
                 }
                 Crs::Epsg3857 => wrapped_tap(x, g.west, g.pixel_width, src_cols, 2.0 * half_world),
+                // Projected grids are reprojected onto EPSG:4326 before they are resampled
+                // (`World::new`); never sampled here.
+                Crs::Projected(_) => None,
             }
         })
         .collect();
@@ -113,6 +116,7 @@ pub fn mercator_window_from_grid(
             let src_y = match g.crs {
                 Crs::Epsg4326 => mercator_to_lonlat(0.0, y).1,
                 Crs::Epsg3857 => y,
+                Crs::Projected(_) => f64::NAN,
             };
             // Rows run southwards; `(north − y) / ph ∈ [0, rows)` is the half-open (south, north].
             tap((g.north - src_y) / g.pixel_height, src_rows)

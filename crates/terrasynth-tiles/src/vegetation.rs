@@ -20,6 +20,7 @@ use terrasynth_core::raster::box2;
 use terrasynth_core::synth::{Amplifier, Field, Window};
 
 use crate::base_layers::{cut, WholeWorld};
+use crate::chain::Chain;
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
@@ -41,18 +42,23 @@ pub struct Inputs<'a> {
 #[derive(Debug)]
 pub struct VegetationLevels {
     landscape: Arc<LandscapeConfig>,
-    /// The amplifier reconstructing the species layers from the same matches as elevation.
-    amplifier: Amplifier,
+    /// The amplifiers (one per zoom band) reconstructing the species layers from the same
+    /// matches as elevation.
+    amplifiers: Chain<Amplifier>,
     cache: LevelCache<Vec<Array2<f32>>>,
 }
 
 impl VegetationLevels {
-    /// Vegetation of `landscape`'s species, amplified with `amplifier` (which reconstructs only
-    /// the species layers), cached in at most `cache_bytes` bytes.
-    pub fn new(landscape: Arc<LandscapeConfig>, amplifier: Amplifier, cache_bytes: u64) -> Self {
+    /// Vegetation of `landscape`'s species, amplified with the zoom's band of `amplifiers` (which
+    /// reconstruct only the species layers), cached in at most `cache_bytes` bytes.
+    pub fn new(
+        landscape: Arc<LandscapeConfig>,
+        amplifiers: Chain<Amplifier>,
+        cache_bytes: u64,
+    ) -> Self {
         VegetationLevels {
             landscape,
-            amplifier,
+            amplifiers,
             cache: LevelCache::new(cache_bytes),
         }
     }
@@ -114,7 +120,7 @@ impl VegetationLevels {
             });
         }
         // Same parent elevation window, hence same matches, as the elevation tile.
-        let amp = &self.amplifier;
+        let amp = self.amplifiers.at(z);
         let need = amp.parent_window_for(w);
         let parent_elev = inputs.elevation.window(z - 1, need)?;
         let parent_veg = self.window(inputs, z - 1, need)?;

@@ -11,12 +11,14 @@ use std::sync::{Arc, Mutex};
 use ndarray::Array2;
 
 use terrasynth_core::analysis::ppa::{self, Features, PpaParams};
-use terrasynth_core::dictionary::{Dictionary, MatchWeights};
+use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::LandscapeConfig;
-use terrasynth_core::raster::{CellSizes, Georef, Grid};
-use terrasynth_core::synth::{Amplifier, Levers, Window};
+use terrasynth_core::raster::reproject::to_geographic;
+use terrasynth_core::raster::{CellSizes, Crs, Georef, Grid};
+use terrasynth_core::synth::{check_bands, Amplifier, Levers, Window, ZoomBand};
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
+use crate::chain::{Chain, DictionaryBand};
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
@@ -33,7 +35,7 @@ pub struct WorldParts {
     pub title: String,
     /// Attribution shown by map clients.
     pub attribution: String,
-    /// The georeferenced base raster (EPSG:4326 or EPSG:3857).
+    /// The georeferenced base raster (EPSG:4326, EPSG:3857 or projected: reprojected).
     pub base: Grid,
     /// Native zoom of the base; `None` derives it from the base's cell size.
     pub z_base: Option<u8>,
@@ -41,10 +43,10 @@ pub struct WorldParts {
     pub max_zoom: u8,
     /// Elevation (m) of pixels outside the base coverage.
     pub fill_m: f32,
-    /// The amplification dictionary (used at every level).
-    pub dictionary: Arc<Dictionary>,
-    /// Content id of the dictionary.
-    pub dictionary_id: String,
+    /// The amplification dictionaries, one per zoom band ([`DictionaryBand::every_zoom`] for a
+    /// world with one dictionary); checked against the native and deepest zooms by
+    /// [`World::new`].
+    pub dictionaries: Vec<DictionaryBand>,
     /// Matching weights.
     pub weights: MatchWeights,
     /// The world's memory budget, bytes: its whole-world landscape layers first, the rest (at
@@ -102,7 +104,8 @@ pub struct World {
     attribution: String,
     /// Where map clients open, `[lon, lat]`.
     center: [f64; 2],
-    dictionary_id: String,
+    /// The chain's bands: zooms (`None`: every amplified zoom) and dictionary id.
+    bands: Vec<(Option<ZoomBand>, String)>,
     fingerprint: String,
     landscape: Arc<LandscapeConfig>,
     elevation: ElevationLevels,
@@ -122,6 +125,24 @@ impl std::fmt::Debug for World {
     }
 }
 
+/// The dictionaries' part of a fingerprint: the id of a world's single dictionary (as before
+/// zoom bands, so such worlds keep their fingerprint), else `id@zooms` per band.
+fn dictionary_key(bands: &[DictionaryBand]) -> String {
+    match bands {
+        [DictionaryBand {
+            zooms: None, id, ..
+        }] => id.clone(),
+        _ => bands
+            .iter()
+            .map(|b| match b.zooms {
+                Some(z) => format!("{}@{z}", b.id),
+                None => b.id.clone(),
+            })
+            .collect::<Vec<_>>()
+            .join(","),
+    }
+}
+
 /// Hex SHA-256 of everything that determines a world's tiles.
 fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
     use sha2::{Digest, Sha256};
@@ -130,7 +151,7 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
     h.update(format!(
         "|{:?}|{}|{}|{}|{}|{:?}|",
         parts.base.georef,
-        parts.dictionary_id,
+        dictionary_key(&parts.dictionaries),
         z_base,
         parts.max_zoom,
         parts.fill_m.to_bits(),
@@ -149,19 +170,30 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
 
 impl World {
     /// Builds a world from its parts (resolving `z_base` from the base's cell size when absent).
-    pub fn new(parts: WorldParts) -> Result<World, TileError> {
+    /// A base in a projected CRS (UTM…) is first reprojected onto EPSG:4326
+    /// ([`terrasynth_core::raster::reproject::to_geographic`]).
+    pub fn new(mut parts: WorldParts) -> Result<World, TileError> {
+        if matches!(parts.base.georef.crs, Crs::Projected(_)) {
+            parts.base =
+                to_geographic(&parts.base).map_err(|e| TileError::Raster(e.to_string()))?;
+        }
         let extent = Extent::of_base(&parts.base, parts.z_base, parts.max_zoom)?;
         parts.landscape.validate()?;
         let levers = Levers {
             sparsity: parts.sparsity.unwrap_or(0),
             ..Levers::default()
         };
-        let amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?
-            .with_levers(levers)
-            .without_layers();
-        let layer_amplifier = Amplifier::new(parts.dictionary.clone(), &parts.weights)?
-            .with_levers(levers)
-            .with_only_layers(&parts.landscape.species_names());
+        let zooms: Vec<_> = parts.dictionaries.iter().map(|b| b.zooms).collect();
+        check_bands(&zooms, extent.z_base, extent.max_zoom)?;
+        let amplifiers = Chain::new(&parts.dictionaries, |b| {
+            Amplifier::new(b.dictionary.clone(), &parts.weights)
+                .map(|a| a.with_levers(levers).without_layers())
+        })?;
+        let species = parts.landscape.species_names();
+        let layer_amplifiers = Chain::new(&parts.dictionaries, |b| {
+            Amplifier::new(b.dictionary.clone(), &parts.weights)
+                .map(|a| a.with_levers(levers).with_only_layers(&species))
+        })?;
         let fingerprint = fingerprint(&parts, extent.z_base);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
@@ -188,18 +220,22 @@ impl World {
             title: parts.title,
             attribution: parts.attribution,
             center,
-            dictionary_id: parts.dictionary_id,
+            bands: parts
+                .dictionaries
+                .iter()
+                .map(|b| (b.zooms, b.id.clone()))
+                .collect(),
             fingerprint,
             elevation: ElevationLevels::new(
                 parts.base,
                 parts.fill_m,
                 extent,
-                amplifier,
+                amplifiers,
                 budget / 2,
             ),
             whole: WholeWorld::new(landscape.clone()),
             drainage: DrainageLevels::new(budget / 4),
-            vegetation: VegetationLevels::new(landscape.clone(), layer_amplifier, budget / 4),
+            vegetation: VegetationLevels::new(landscape.clone(), layer_amplifiers, budget / 4),
             landscape,
             features: Mutex::new(None),
         })
@@ -300,9 +336,15 @@ impl World {
         ]
     }
 
-    /// Content ids of the dictionaries of the synthesis chain.
+    /// Content ids of the dictionaries of the synthesis chain, in band order.
     pub fn dictionary_ids(&self) -> Vec<String> {
-        vec![self.dictionary_id.clone()]
+        self.bands.iter().map(|(_, id)| id.clone()).collect()
+    }
+
+    /// The chain's bands: zooms (`None`: every amplified zoom) and dictionary id, in the order
+    /// they were given.
+    pub fn dictionary_bands(&self) -> &[(Option<ZoomBand>, String)] {
+        &self.bands
     }
 
     /// The landscape configuration.

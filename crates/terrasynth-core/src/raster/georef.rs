@@ -1,5 +1,6 @@
 //! Georeference: the affine transform from pixel to map coordinates for north-up grids in
-//! EPSG:4326 (degrees) or EPSG:3857 (Web Mercator metres), and the metric cell sizes derived from it.
+//! EPSG:4326 (degrees), EPSG:3857 (Web Mercator metres) or a projected CRS in metres (UTM: see
+//! [`super::projection`]), and the metric cell sizes derived from it.
 
 use serde::{Deserialize, Serialize};
 
@@ -17,15 +18,18 @@ pub fn is_map_point([lon, lat]: [f64; 2]) -> bool {
     lon.is_finite() && lat.is_finite() && lon.abs() <= 180.0 && lat.abs() <= MAX_MERCATOR_LAT
 }
 
-/// The coordinate reference systems terrasynth understands.
+/// The coordinate reference systems terrasynth understands. Serialised as `"EPSG:{code}"`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(into = "String", try_from = "String")]
 pub enum Crs {
     /// Geographic WGS84 longitude/latitude in degrees.
-    #[serde(rename = "EPSG:4326")]
     Epsg4326,
     /// Web Mercator, metres on the sphere of radius [`MERCATOR_RADIUS_M`].
-    #[serde(rename = "EPSG:3857")]
     Epsg3857,
+    /// A projected CRS in metres (an EPSG code [`super::projection`] understands, e.g. UTM):
+    /// a metric grid whose cells are taken at their nominal size (the projection's scale error,
+    /// under 0.1 % in UTM, is ignored).
+    Projected(u16),
 }
 
 impl Crs {
@@ -34,6 +38,7 @@ impl Crs {
         match self {
             Crs::Epsg4326 => 4326,
             Crs::Epsg3857 => 3857,
+            Crs::Projected(code) => code,
         }
     }
 
@@ -42,8 +47,44 @@ impl Crs {
         match code {
             4326 => Some(Crs::Epsg4326),
             3857 | 900913 | 3785 => Some(Crs::Epsg3857),
-            _ => None,
+            c => u16::try_from(c)
+                .ok()
+                .filter(|&c| super::projection::is_supported(c))
+                .map(Crs::Projected),
         }
+    }
+
+    /// Longitude/latitude in degrees of map coordinates `(x, y)`; `None` where a projection has
+    /// no answer.
+    pub fn to_lonlat(self, x: f64, y: f64) -> Option<(f64, f64)> {
+        match self {
+            Crs::Epsg4326 => Some((x, y)),
+            Crs::Epsg3857 => Some((
+                (x / MERCATOR_RADIUS_M).to_degrees(),
+                (2.0 * (y / MERCATOR_RADIUS_M).exp().atan() - std::f64::consts::FRAC_PI_2)
+                    .to_degrees(),
+            )),
+            Crs::Projected(code) => super::projection::Projection::new(code)
+                .ok()?
+                .to_lonlat(x, y),
+        }
+    }
+}
+
+impl From<Crs> for String {
+    fn from(c: Crs) -> String {
+        format!("EPSG:{}", c.epsg())
+    }
+}
+
+impl TryFrom<String> for Crs {
+    type Error = String;
+
+    fn try_from(s: String) -> Result<Crs, String> {
+        s.strip_prefix("EPSG:")
+            .and_then(|c| c.parse::<u32>().ok())
+            .and_then(Crs::from_epsg)
+            .ok_or_else(|| format!("unsupported CRS `{s}`"))
     }
 }
 
@@ -122,13 +163,11 @@ impl Georef {
         )
     }
 
-    /// Latitude in degrees of map y in this CRS.
+    /// Latitude in degrees of map y in this CRS (for a projected CRS, which needs x too: 0).
     pub fn latitude_of(&self, y: f64) -> f64 {
         match self.crs {
-            Crs::Epsg4326 => y,
-            Crs::Epsg3857 => (2.0 * (y / MERCATOR_RADIUS_M).exp().atan()
-                - std::f64::consts::FRAC_PI_2)
-                .to_degrees(),
+            Crs::Epsg4326 | Crs::Epsg3857 => self.crs.to_lonlat(0.0, y).map_or(0.0, |p| p.1),
+            Crs::Projected(_) => 0.0,
         }
     }
 
@@ -137,6 +176,7 @@ impl Georef {
         let y = self.north - (row + 0.5) * self.pixel_height;
         let lat = self.latitude_of(y).clamp(-89.9, 89.9).to_radians();
         match self.crs {
+            Crs::Projected(_) => (self.pixel_width, self.pixel_height),
             Crs::Epsg4326 => {
                 let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
                 (self.pixel_width * k * lat.cos(), self.pixel_height * k)
@@ -194,6 +234,8 @@ impl Georef {
                 let lim = std::f64::consts::PI * MERCATOR_RADIUS_M * 1.0001;
                 w >= -lim * 2.0 && e <= lim * 2.0 && s >= -lim && n <= lim
             }
+            // UTM eastings and northings stay well within ±10⁸ m.
+            Crs::Projected(_) => [w, s, e, n].iter().all(|v| v.abs() <= 1e8),
         }
     }
 }

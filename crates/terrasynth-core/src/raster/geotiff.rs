@@ -4,7 +4,8 @@
 //! and 8-bit signed integers too, since the decoder provides them), stored in strips or tiles,
 //! uncompressed, Deflate (codes 8 and 32946), LZW or PackBits, with predictor 1, 2 or 3. The
 //! georeference comes from ModelPixelScale + ModelTiepoint or a north-up ModelTransformation, and
-//! the CRS from the GeoKeyDirectory (EPSG:4326 or EPSG:3857). `GDAL_NODATA` values and non-finite
+//! the CRS from the GeoKeyDirectory (EPSG:4326, EPSG:3857 or a projected CRS in metres that
+//! [`super::projection`] understands: UTM zones). `GDAL_NODATA` values and non-finite
 //! values become invalid cells (stored as NaN in the returned grid's data).
 //!
 //! Writing produces a Deflate-compressed single-band float32 GeoTIFF that this reader (and GDAL)
@@ -196,7 +197,8 @@ fn crs_from_keys(keys: &GeoKeys) -> Result<Crs, RasterError> {
     })?;
     Crs::from_epsg(u32::from(code)).ok_or_else(|| {
         unsupported(format!(
-            "CRS {key} = {code}; only EPSG:4326 and EPSG:3857 are read"
+            "CRS {key} = {code} (EPSG:{code}); read are EPSG:4326, EPSG:3857 and the UTM zones \
+             EPSG:326xx/327xx (WGS84), 269xx (NAD83) and 258xx (ETRS89)"
         ))
     })
 }
@@ -458,7 +460,7 @@ pub fn read_geotiff_file(path: &Path, limits: &ReadLimits) -> Result<Grid, Raste
 fn geokey_directory(crs: Crs) -> [u16; 16] {
     let (model_type, crs_key) = match crs {
         Crs::Epsg4326 => (2, GEOGRAPHIC_TYPE),
-        Crs::Epsg3857 => (1, PROJECTED_CS_TYPE),
+        Crs::Epsg3857 | Crs::Projected(_) => (1, PROJECTED_CS_TYPE),
     };
     [
         1,
@@ -606,10 +608,14 @@ mod tests {
             projected: Some(32633),
             ..keys
         };
-        assert!(matches!(
-            crs_from_keys(&utm),
-            Err(RasterError::Unsupported { .. })
-        ));
+        assert_eq!(crs_from_keys(&utm).unwrap(), Crs::Projected(32633));
+        let lambert = GeoKeys {
+            projected: Some(2154),
+            ..utm
+        };
+        let e = crs_from_keys(&lambert).unwrap_err();
+        assert!(matches!(e, RasterError::Unsupported { .. }));
+        assert!(e.to_string().contains("EPSG:2154"), "{e}");
     }
 
     #[test]

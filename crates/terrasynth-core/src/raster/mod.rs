@@ -1,5 +1,6 @@
-//! Rasters: grids on `ndarray::Array2<f32>` with a georeference (EPSG:4326 or EPSG:3857) and a
-//! nodata mask, multi-layer rasters, and the file formats terrasynth reads and writes (GeoTIFF,
+//! Rasters: grids on `ndarray::Array2<f32>` with a georeference (EPSG:4326, EPSG:3857 or a
+//! projected CRS in metres: [`projection`]) and a nodata mask, reprojection of projected grids
+//! onto longitude/latitude ([`reproject`]), multi-layer rasters, and the file formats terrasynth reads and writes (GeoTIFF,
 //! 16-bit PNG, OpenEXR). Nothing here does HTTP or async work.
 
 pub mod boxfilter;
@@ -12,6 +13,8 @@ pub mod io;
 pub mod limits;
 pub mod openexr;
 pub mod png16;
+pub mod projection;
+pub mod reproject;
 
 pub use boxfilter::{box2, box_down2_rows, reduce2x2};
 pub use error::RasterError;

@@ -16,6 +16,7 @@ mod analysis;
 mod dictionary;
 mod matching;
 mod ppa;
+mod projected;
 mod raster_io;
 mod sketch;
 mod synth;

@@ -151,6 +151,9 @@ pub fn lonlat(crs: Crs, x: f64, y: f64) -> [f64; 2] {
                 (2.0 * (y / r).exp().atan() - std::f64::consts::FRAC_PI_2).to_degrees(),
             ]
         }
+        Crs::Projected(_) => crs
+            .to_lonlat(x, y)
+            .map_or([f64::NAN, f64::NAN], |(lon, lat)| [lon, lat]),
     }
 }
 
