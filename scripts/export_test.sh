@@ -5,6 +5,7 @@
 #     into a virtualenv under target/): header (v3, clustered, gzip directories, PNG), metadata
 #     (`encoding: "terrarium"` for elevation), and every tile equal to the bytes the server
 #     serves at /tiles/{world}/{layer}/{z}/{x}/{y}.png; the same with leaf directories forced;
+#   - the same for a `--tile-format webp` export against the served `{y}.webp` tiles;
 #   - opens the MBTiles archives with Python's sqlite3: metadata (name, format, bounds, center,
 #     minzoom, maxzoom) and every tile (TMS row) equal to the served bytes;
 #   - exports two shards and joins them with `export merge`: the same tiles as the whole export;
@@ -56,6 +57,7 @@ export_to() { # FORMAT OUTPUT [extra args]
 }
 export_to pmtiles "$OUT/talas.pmtiles"
 export_to mbtiles "$OUT/talas.mbtiles"
+export_to pmtiles "$OUT/webp.pmtiles" --tile-format webp
 # Leaf directories forced by a small root (the default keeps this export's root in 16 KiB).
 "$BIN" export --world tienshan --bbox "$BBOX" --zooms "$ZOOMS" --layers elevation \
     --format pmtiles --output "$OUT/leaves.pmtiles" --max-root-bytes 120 >/dev/null
@@ -79,10 +81,10 @@ w, s, e, n = map(float, bbox.split(","))
 z0, z1 = map(int, zooms.split("-"))
 served = {}
 
-def serve(layer, z, x, y):
-    key = (layer, z, x, y)
+def serve(layer, z, x, y, ext="png"):
+    key = (layer, z, x, y) if ext == "png" else (layer, z, x, y, ext)
     if key not in served:
-        with urllib.request.urlopen(f"{base}/tiles/tienshan/{layer}/{z}/{x}/{y}.png") as r:
+        with urllib.request.urlopen(f"{base}/tiles/tienshan/{layer}/{z}/{x}/{y}.{ext}") as r:
             assert r.status == 200
             served[key] = r.read()
     return served[key]
@@ -99,17 +101,17 @@ def expected(z):
 
 want = set().union(*(expected(z) for z in range(z0, z1 + 1)))
 
-def read_pmtiles(path, layer):
+def read_pmtiles(path, layer, ext="png"):
     with open(path, "rb") as f:
         r = Reader(MmapSource(f))
         h = r.header()
-        assert h["tile_type"] == TileType.PNG, h
+        assert h["tile_type"] == (TileType.PNG if ext == "png" else TileType.WEBP), h
         assert h["clustered"], h
         assert h["internal_compression"] == Compression.GZIP, h
         assert h["tile_compression"] == Compression.NONE, h
         assert (h["min_zoom"], h["max_zoom"]) == (z0, z1), h
         meta = r.metadata()
-        assert meta["format"] == "png", meta
+        assert meta["format"] == ext, meta
         if layer == "elevation":
             assert meta["encoding"] == "terrarium", meta
         else:
@@ -131,6 +133,14 @@ for layer in ("elevation", "color"):
         assert merged == tiles, "merged shards differ from the whole export"
         _, part = read_pmtiles(f"{out}/part1.pmtiles", layer)
         assert 0 < len(part) < len(tiles), "a shard holds part of the tiles"
+
+for layer in ("elevation", "color"):
+    _, tiles = read_pmtiles(f"{out}/webp-{layer}.pmtiles", layer, "webp")
+    assert set(tiles) == want
+    for (z, x, y), data in tiles.items():
+        assert data[:4] == b"RIFF" and data[8:12] == b"WEBP"
+        assert data == serve(layer, z, x, y, "webp"), f"webp {layer} {z}/{x}/{y} differs"
+        checked += 1
 
 h, leaves = read_pmtiles(f"{out}/leaves.pmtiles", "elevation")
 assert h["leaf_directory_length"] > 0, h

@@ -103,9 +103,9 @@ fn number(query: &HashMap<String, String>, key: &str) -> Result<Option<f64>, Ser
 /// The served elevation at one point.
 #[utoipa::path(get, path = "/worlds/{world}/elevation", tag = "meta",
     params(
-        ("world" = String, Path, description = "World name"),
-        ("lon" = f64, Query, description = "Longitude, degrees (−180..180)"),
-        ("lat" = f64, Query, description = "Latitude, degrees (±85.0511)"),
+        ("world" = String, Path, description = "World name", example = "tienshan"),
+        ("lon" = f64, Query, description = "Longitude, degrees (−180..180)", example = 72.5),
+        ("lat" = f64, Query, description = "Latitude, degrees (±85.0511)", example = 42.4),
         ("z" = Option<u8>, Query, description = "Zoom to read (default the world's opening zoom; capped at its deepest)")
     ),
     responses(
@@ -158,7 +158,7 @@ pub async fn elevation_at(
 
 /// The served elevation at up to 10,000 points (a profile along a line).
 #[utoipa::path(post, path = "/worlds/{world}/elevation", tag = "meta",
-    params(("world" = String, Path, description = "World name")),
+    params(("world" = String, Path, description = "World name", example = "tienshan")),
     request_body = ElevationRequest,
     responses(
         (status = 200, description = "Metres at each point (`null` outside the world), and the zoom used", body = ElevationProfile),
