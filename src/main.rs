@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use terrasynth::cli::export::{self, ArchiveFormat, Shard, TileFormat};
 use terrasynth::cli::{amplify, build, compact, crop, eval, features, sketch, CliError};
 use terrasynth::config::ConfigError;
 use terrasynth::server::StartupError;
@@ -43,6 +44,9 @@ enum Command {
     Features(FeaturesCli),
     /// Synthesize a base terrain from a sketch of ridge and valley lines and exemplar DEMs.
     Sketch(SketchCli),
+    /// Write a world's tiles over a bounding box to PMTiles or MBTiles archives (one per layer);
+    /// `export merge` joins the parts of a sharded export.
+    Export(ExportCli),
     /// Serve tiles over HTTP (the default command).
     Serve(ServeCli),
     /// Print the OpenAPI 3.1 description of the HTTP API (as committed in openapi/openapi.json).
@@ -245,6 +249,118 @@ struct SketchCli {
     seed: u64,
 }
 
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+struct ExportCli {
+    #[command(subcommand)]
+    command: Option<ExportCommand>,
+    /// The world (a configured world or one created through the admin API in the store).
+    #[arg(long, required = true)]
+    world: Option<String>,
+    /// Bounding box W,S,E,N in degrees.
+    #[arg(long, value_name = "W,S,E,N", value_parser = export::parse_bbox, allow_hyphen_values = true, required = true)]
+    bbox: Option<[f64; 4]>,
+    /// Zooms, `FIRST-LAST` (e.g. `0-14`) or one zoom.
+    #[arg(long, value_name = "A-B", value_parser = export::parse_zooms, required = true)]
+    zooms: Option<(u8, u8)>,
+    /// Layers, comma-separated (e.g. `elevation,color`); several layers write one archive each,
+    /// named FILE with `-LAYER` before the extension.
+    #[arg(long, value_delimiter = ',', required = true)]
+    layers: Vec<String>,
+    /// Archive format.
+    #[arg(long, value_enum, required = true)]
+    format: Option<ArchiveFormat>,
+    /// The archive to write.
+    #[arg(long, value_name = "FILE", required = true)]
+    output: Option<PathBuf>,
+    /// Tile format (as served at `{y}.png` or `{y}.webp`).
+    #[arg(long, value_enum, default_value = "png")]
+    tile_format: TileFormat,
+    /// Write only part I of N (numbered from 1) of the tiles; `export merge` joins the parts.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<Shard>,
+    /// Configuration file (as for `serve`; the same `TERRASYNTH_*` variables apply).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Largest PMTiles root directory, bytes (smaller values force leaf directories; tests).
+    #[arg(long, hide = true, default_value_t = 16_384 - 127)]
+    max_root_bytes: usize,
+}
+
+#[derive(Subcommand)]
+enum ExportCommand {
+    /// Join the parts of a sharded export (all PMTiles or all MBTiles) into one archive.
+    Merge(MergeCli),
+}
+
+#[derive(Args)]
+struct MergeCli {
+    /// The archive to write.
+    #[arg(long, value_name = "FILE")]
+    output: PathBuf,
+    /// The parts, in any order.
+    #[arg(value_name = "PART", required = true)]
+    parts: Vec<PathBuf>,
+}
+
+fn run_export(a: ExportCli) -> Result<(), Failure> {
+    if let Some(ExportCommand::Merge(m)) = a.command {
+        let s = export::merge(&m.parts, &m.output).map_err(CliError::from)?;
+        eprintln!(
+            "merged {} parts into {}: {} tiles ({} distinct), {} bytes",
+            m.parts.len(),
+            m.output.display(),
+            s.tiles,
+            s.unique,
+            s.bytes
+        );
+        return Ok(());
+    }
+    let missing = |what: &str| CliError::Usage(format!("export needs --{what}"));
+    let name = a.world.ok_or_else(|| missing("world"))?;
+    let args = export::ExportArgs {
+        bbox: a.bbox.ok_or_else(|| missing("bbox"))?,
+        zooms: a.zooms.ok_or_else(|| missing("zooms"))?,
+        layers: a.layers,
+        format: a.format.ok_or_else(|| missing("format"))?,
+        output: a.output.ok_or_else(|| missing("output"))?,
+        tile_format: a.tile_format,
+        shard: a.shard,
+        max_root_bytes: a.max_root_bytes,
+    };
+    let config = terrasynth::config::load(a.config.as_deref(), std::env::vars())?;
+    eprintln!("loading world `{name}`…");
+    let state = terrasynth::server::startup::build_state(&config)?;
+    let world = state.live.get(&name).ok_or_else(|| {
+        let known: Vec<String> = state.live.snapshot().keys().cloned().collect();
+        CliError::Usage(format!("no world `{name}` (known: {})", known.join(", ")))
+    })?;
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {pos}/{len} tiles [{bar:40}] {per_sec} ETA {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let summary = export::run(&world, &args, &mut |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    let s = summary?;
+    for a in &s.archives {
+        eprintln!(
+            "wrote {}: {} tiles ({} distinct), {} bytes",
+            a.path, a.tiles, a.unique, a.bytes
+        );
+    }
+    eprintln!(
+        "exported {} tiles in {:.1} s: {:.1} tiles/s",
+        s.tiles, s.seconds, s.tiles_per_second
+    );
+    let json = serde_json::to_string_pretty(&s).map_err(|e| CliError::Usage(e.to_string()))?;
+    println!("{json}");
+    Ok(())
+}
+
 fn progress_bar() -> ProgressBar {
     let bar = ProgressBar::new(1000);
     bar.set_style(
@@ -366,6 +482,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
     let command = cli.command.unwrap_or(Command::Serve(ServeCli::default()));
     match command {
         Command::Serve(args) => run_serve(args),
+        Command::Export(args) => run_export(args),
         Command::Openapi => {
             print!("{}", terrasynth::server::openapi::spec_json());
             Ok(())

@@ -21,6 +21,12 @@ pub enum CliError {
     /// Amplification failed.
     #[error(transparent)]
     Synth(#[from] SynthError),
+    /// An archive could not be written or read.
+    #[error(transparent)]
+    Archive(#[from] crate::archive::ArchiveError),
+    /// A tile could not be computed or encoded.
+    #[error(transparent)]
+    Tile(#[from] terrasynth_tiles::TileError),
     /// Sketch synthesis failed (or the sketch is invalid).
     #[error(transparent)]
     Sketch(#[from] terrasynth_core::synth::sketch::SketchError),

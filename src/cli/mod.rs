@@ -1,5 +1,5 @@
 //! The command line's commands as library functions, so that they can be tested without a
-//! process: `dictionary build`, `amplify`, `eval`, `crop`, `compress`, `decompress`, `features` and `sketch`. `src/main.rs` only parses arguments
+//! process: `dictionary build`, `amplify`, `eval`, `crop`, `compress`, `decompress`, `features`, `sketch` and `export`. `src/main.rs` only parses arguments
 //! and calls these.
 
 #![warn(clippy::arithmetic_side_effects)]
@@ -10,6 +10,7 @@ pub mod compact;
 pub mod crop;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod features;
 pub mod sketch;
 

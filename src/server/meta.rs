@@ -5,13 +5,13 @@
 //! request came with — then the answer says `Vary: Host, X-Forwarded-Proto`, so that caches keep
 //! one copy per host — with the listening address standing in for a missing or invalid `Host`.
 
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
 
-use terrasynth_tiles::style::{style_json, tilejson_of, LAYERS};
+use terrasynth_tiles::style::{style_json, tilejson_in, LAYERS};
 use terrasynth_tiles::{TileJson, World};
 
 use super::error::{Problem, ServerError};
@@ -175,22 +175,25 @@ pub async fn world(
     tag = "tiles",
     params(
         ("world" = String, Path, description = "World name"),
-        ("file" = String, Path, description = "`{layer}.json`")
+        ("file" = String, Path, description = "`{layer}.json`"),
+        ("tile_format" = Option<String>, Query, description = "`png` (default) or `webp` (lossless; `elevation` and `color`): the format of the tile URLs")
     ),
     responses(
         (status = 200, description = "TileJSON", body = TileJson),
-        (status = 404, description = "Unknown world or layer", body = Problem, content_type = "application/problem+json")
+        (status = 404, description = "Unknown world or layer, or a layer without that tile format", body = Problem, content_type = "application/problem+json")
     )
 )]
 pub async fn tilejson(
     State(state): State<AppState>,
     Path((name, file)): Path<(String, String)>,
+    Query(query): Query<std::collections::HashMap<String, String>>,
     headers: HeaderMap,
 ) -> Result<Response, ServerError> {
     let w = state.world(&name)?;
     let (base, vary) = base_url(&state.config, &headers);
+    let format = query.get("tile_format").map_or("png", String::as_str);
     file.strip_suffix(".json")
-        .and_then(|layer| tilejson_of(&w, &base, layer))
+        .and_then(|layer| tilejson_in(&w, &base, layer, format))
         .map(|t: TileJson| json_varying(t, vary))
         .ok_or_else(|| ServerError::NotFound(format!("no TileJSON `{file}`")))
 }

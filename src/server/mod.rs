@@ -1,6 +1,7 @@
 //! The HTTP server: the router ([`app`], every route declared once with its OpenAPI description
 //! in [`api_routes`]), handlers that translate HTTP into calls of the tiles and store crates
-//! ([`tiles`], [`meta`], [`features`], [`web`], the admin API in [`admin`]), errors as problem+json
+//! ([`tiles`], [`meta`], [`features`], point queries in [`points`], [`web`], the admin API in
+//! [`admin`]), errors as problem+json
 //! ([`error`]), Prometheus metrics ([`metrics`]), the shared state ([`state`]), world loading
 //! ([`worlds`]), start-up ([`startup`]) and the accept loop with its connection limits
 //! ([`connections`]). CPU work (tile synthesis and encoding) and blocking IO run on tokio's
@@ -15,6 +16,7 @@ pub mod features;
 pub mod meta;
 pub mod metrics;
 pub mod openapi;
+pub mod points;
 pub mod startup;
 pub mod state;
 pub mod tiles;
@@ -135,6 +137,7 @@ pub fn api_routes(admin: bool) -> OpenApiRouter<AppState> {
         .routes(routes!(openapi::serve_spec))
         .routes(routes!(meta::world))
         .routes(routes!(features::features))
+        .routes(routes!(points::elevation_at, points::elevation_profile))
         .routes(routes!(meta::tilejson))
         .routes(routes!(meta::style))
         .layer(CompressionLayer::new());

@@ -12,7 +12,9 @@
 //! - [`admin_e2e`]: the admin flow, restarts and crashes on the real binary;
 //! - [`hardening`]: one test per defect of issue #14 (bounded under abuse, one error shape,
 //!   strict parsing, store hygiene, failed authentication);
-//! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list.
+//! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list;
+//! - [`webp`]: lossless WebP tiles carry the PNG tiles' pixels;
+//! - [`points`]: point queries answer the EXR tiles' values.
 //!
 //! Shared helpers are in [`support`] and the `terrasynth-test-support` crate.
 
@@ -25,8 +27,10 @@ mod cli;
 mod e2e;
 mod hardening;
 mod openapi;
+mod points;
 mod server;
 mod sketch;
 mod support;
 mod tile_hashes;
 mod web;
+mod webp;

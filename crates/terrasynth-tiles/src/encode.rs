@@ -1,5 +1,7 @@
 //! Tile encoders (and the decoders tests and clients' checks need): terrarium and mapbox
-//! Terrain-RGB elevation PNGs, 8-bit grey and RGBA PNGs, and float32 OpenEXR.
+//! Terrain-RGB elevation PNGs and lossless WebPs, 8-bit grey PNGs, RGBA PNGs and lossless WebPs,
+//! and float32 OpenEXR. A WebP tile holds exactly the pixels of the PNG of the same request
+//! (lossless, `image-webp`'s encoder at its fixed settings), so it decodes to the same heights.
 //!
 //! Output bytes are deterministic: the PNG encoder always runs with the same settings
 //! (8-bit, the Paeth row filter and zlib-rs deflate at level 3 — fast, with the dynamic Huffman codes
@@ -88,6 +90,12 @@ fn write_png(
 /// NaN heights are encoded as [`NAN_FILL_HEIGHT_M`]. Errors only for an empty or oversized array.
 pub fn encode_terrarium_png(heights: &Array2<f32>) -> Result<Vec<u8>, TileError> {
     let (rows, cols) = heights.dim();
+    write_png(rows, cols, png::ColorType::Rgb, &terrarium_rgb(heights))
+}
+
+/// The packed RGB samples of [`encode_terrarium_png`].
+fn terrarium_rgb(heights: &Array2<f32>) -> Vec<u8> {
+    let (rows, cols) = heights.dim();
     let steps = TERRARIUM_STEPS_PER_M;
     // The largest code: (65535 + 15/16) m above −32768, in steps.
     let max_code = 65_536.0 * steps - 1.0;
@@ -109,7 +117,7 @@ pub fn encode_terrarium_png(heights: &Array2<f32>) -> Result<Vec<u8>, TileError>
             (frac << frac_shift) as u8,
         ]);
     }
-    write_png(rows, cols, png::ColorType::Rgb, &rgb)
+    rgb
 }
 
 /// Encodes heights in metres as a mapbox Terrain-RGB PNG: `v = round((h + 10000) · 10)` clamped to
@@ -117,6 +125,12 @@ pub fn encode_terrarium_png(heights: &Array2<f32>) -> Result<Vec<u8>, TileError>
 /// `−10000 + (R·65536 + G·256 + B)·0.1` is `h` to the nearest 0.1 m (within −10000..=1667721.5 m).
 /// NaN heights are encoded as [`NAN_FILL_HEIGHT_M`]. Errors only for an empty or oversized array.
 pub fn encode_mapbox_png(heights: &Array2<f32>) -> Result<Vec<u8>, TileError> {
+    let (rows, cols) = heights.dim();
+    write_png(rows, cols, png::ColorType::Rgb, &mapbox_rgb(heights))
+}
+
+/// The packed RGB samples of [`encode_mapbox_png`].
+fn mapbox_rgb(heights: &Array2<f32>) -> Vec<u8> {
     let (rows, cols) = heights.dim();
     let mut rgb = Vec::with_capacity(rows * cols * 3);
     for &h in heights.iter() {
@@ -128,7 +142,70 @@ pub fn encode_mapbox_png(heights: &Array2<f32>) -> Result<Vec<u8>, TileError> {
         let v = ((h + 10_000.0) * 10.0).round().clamp(0.0, MAPBOX_MAX) as u32;
         rgb.extend_from_slice(&[(v >> 16) as u8, ((v >> 8) & 255) as u8, (v & 255) as u8]);
     }
-    write_png(rows, cols, png::ColorType::Rgb, &rgb)
+    rgb
+}
+
+/// Writes a lossless WebP from packed row-major RGB (`alpha` false) or RGBA samples.
+fn write_webp(rows: usize, cols: usize, alpha: bool, samples: &[u8]) -> Result<Vec<u8>, TileError> {
+    let (w, h) = png_dims(rows, cols)?;
+    let color = if alpha {
+        image_webp::ColorType::Rgba8
+    } else {
+        image_webp::ColorType::Rgb8
+    };
+    let mut out = Vec::new();
+    image_webp::WebPEncoder::new(&mut out)
+        .encode(samples, w, h, color)
+        .map_err(|e| TileError::Encode(e.to_string()))?;
+    Ok(out)
+}
+
+/// [`encode_terrarium_png`]'s pixels as a lossless WebP.
+pub fn encode_terrarium_webp(heights: &Array2<f32>) -> Result<Vec<u8>, TileError> {
+    let (rows, cols) = heights.dim();
+    write_webp(rows, cols, false, &terrarium_rgb(heights))
+}
+
+/// [`encode_mapbox_png`]'s pixels as a lossless WebP.
+pub fn encode_mapbox_webp(heights: &Array2<f32>) -> Result<Vec<u8>, TileError> {
+    let (rows, cols) = heights.dim();
+    write_webp(rows, cols, false, &mapbox_rgb(heights))
+}
+
+/// [`encode_rgba_png`]'s pixels as a lossless WebP.
+pub fn encode_rgba_webp(rgba: &Array2<[u8; 4]>) -> Result<Vec<u8>, TileError> {
+    let (rows, cols) = rgba.dim();
+    let samples: Vec<u8> = rgba.iter().flatten().copied().collect();
+    write_webp(rows, cols, true, &samples)
+}
+
+/// Whether `bytes` are a WebP file (`RIFF....WEBP`).
+fn is_webp(bytes: &[u8]) -> bool {
+    bytes.len() >= 12 && &bytes[..4] == b"RIFF" && &bytes[8..12] == b"WEBP"
+}
+
+/// Decodes a WebP (RGB or RGBA) into `(R, G, B)` triples, shape `(height, width)`.
+fn decode_rgb_webp(bytes: &[u8]) -> Result<Array2<[u8; 3]>, TileError> {
+    let err = |e: image_webp::DecodingError| TileError::Decode(e.to_string());
+    let mut d = image_webp::WebPDecoder::new(Cursor::new(bytes)).map_err(err)?;
+    let (w, h) = d.dimensions();
+    let (w, h) = (w as usize, h as usize);
+    if w.saturating_mul(h) > 4096 * 4096 {
+        return Err(TileError::Decode(format!("WebP of {w}×{h} is too large")));
+    }
+    let channels = if d.has_alpha() { 4 } else { 3 };
+    let size = d
+        .output_buffer_size()
+        .ok_or_else(|| TileError::Decode("image too large".to_string()))?;
+    if size != w * h * channels {
+        return Err(TileError::Decode("unexpected WebP buffer size".to_string()));
+    }
+    let mut buf = vec![0u8; size];
+    d.read_image(&mut buf).map_err(err)?;
+    Ok(Array2::from_shape_fn((h, w), |(r, c)| {
+        let o = (r * w + c) * channels;
+        [buf[o], buf[o + 1], buf[o + 2]]
+    }))
 }
 
 /// Encodes 8-bit values as a greyscale PNG (hillshade, log-scaled drainage...).
@@ -182,19 +259,28 @@ fn decode_rgb_png(bytes: &[u8]) -> Result<Array2<[u8; 3]>, TileError> {
     }))
 }
 
-/// Decodes a terrarium PNG (8-bit RGB or RGBA) into heights `R·256 + G + B/256 − 32768`, shape
-/// `(height, width)`.
+/// The RGB triples of a PNG or a WebP (told by its first bytes).
+fn decode_rgb(bytes: &[u8]) -> Result<Array2<[u8; 3]>, TileError> {
+    if is_webp(bytes) {
+        decode_rgb_webp(bytes)
+    } else {
+        decode_rgb_png(bytes)
+    }
+}
+
+/// Decodes a terrarium PNG or WebP (8-bit RGB or RGBA) into heights
+/// `R·256 + G + B/256 − 32768`, shape `(height, width)`.
 pub fn decode_terrarium_png(bytes: &[u8]) -> Result<Array2<f32>, TileError> {
-    let rgb = decode_rgb_png(bytes)?;
+    let rgb = decode_rgb(bytes)?;
     Ok(rgb.mapv(|[r, g, b]| {
         (f64::from(r) * 256.0 + f64::from(g) + f64::from(b) / 256.0 - 32_768.0) as f32
     }))
 }
 
-/// Decodes a mapbox Terrain-RGB PNG (8-bit RGB or RGBA) into heights
+/// Decodes a mapbox Terrain-RGB PNG or WebP (8-bit RGB or RGBA) into heights
 /// `−10000 + (R·65536 + G·256 + B)·0.1`, shape `(height, width)`.
 pub fn decode_mapbox_png(bytes: &[u8]) -> Result<Array2<f32>, TileError> {
-    let rgb = decode_rgb_png(bytes)?;
+    let rgb = decode_rgb(bytes)?;
     Ok(rgb.mapv(|[r, g, b]| {
         let v = (u32::from(r) << 16) | (u32::from(g) << 8) | u32::from(b);
         (-10_000.0 + f64::from(v) * 0.1) as f32
@@ -245,6 +331,54 @@ mod tests {
 
     fn known_heights() -> Array2<f32> {
         Array2::from_shape_vec((1, 4), vec![-32768.0, 0.0, 1234.5, 7633.0]).expect("shape")
+    }
+
+    #[test]
+    fn webp_tiles_decode_to_the_png_heights_and_pixels() {
+        let heights = Array2::from_shape_fn((256, 256), |(r, c)| {
+            let (r, c) = (r as f32, c as f32);
+            1500.0 + 700.0 * (r * 0.031).sin() * (c * 0.017).cos() + 0.37 * r - 0.11 * c
+                + if (r as usize * 7 + c as usize) % 13 == 0 {
+                    f32::NAN
+                } else {
+                    0.0
+                }
+        });
+        let (tp, tw) = (
+            encode_terrarium_png(&heights).unwrap(),
+            encode_terrarium_webp(&heights).unwrap(),
+        );
+        assert!(is_webp(&tw) && !is_webp(&tp));
+        assert_eq!(
+            decode_terrarium_png(&tp).unwrap(),
+            decode_terrarium_png(&tw).unwrap()
+        );
+        assert_eq!(decode_rgb(&tp).unwrap(), decode_rgb(&tw).unwrap());
+        let (mp, mw) = (
+            encode_mapbox_png(&heights).unwrap(),
+            encode_mapbox_webp(&heights).unwrap(),
+        );
+        assert_eq!(
+            decode_mapbox_png(&mp).unwrap(),
+            decode_mapbox_png(&mw).unwrap()
+        );
+        let rgba = Array2::from_shape_fn((256, 256), |(r, c)| {
+            [
+                r as u8,
+                c as u8,
+                (r * c % 251) as u8,
+                if r == c { 0 } else { 255 },
+            ]
+        });
+        let w = encode_rgba_webp(&rgba).unwrap();
+        let mut d = image_webp::WebPDecoder::new(Cursor::new(&w[..])).unwrap();
+        assert!(d.has_alpha());
+        let mut buf = vec![0u8; d.output_buffer_size().unwrap()];
+        d.read_image(&mut buf).unwrap();
+        assert_eq!(buf, rgba.iter().flatten().copied().collect::<Vec<u8>>());
+        // Deterministic bytes.
+        assert_eq!(encode_rgba_webp(&rgba).unwrap(), w);
+        assert!(decode_terrarium_png(b"RIFF\0\0\0\0WEBPjunk").is_err());
     }
 
     #[test]

@@ -4,8 +4,9 @@
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
-//! ([`world`]) with a dictionary per zoom band ([`chain`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
-//! TileJSON ([`tilejson`]) and styles ([`style`]). Computations are coalesced and cancelled
+//! ([`world`]) with a dictionary per zoom band ([`chain`]), tile requests ([`request`]),
+//! renderers ([`render`]), encoders ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and
+//! point queries of the served elevation ([`point`]). Computations are coalesced and cancelled
 //! cooperatively when nobody waits for them any more ([`cancel`]).
 //!
 //! Everything here is deterministic: the bytes of a tile depend only on the world and the
@@ -22,6 +23,7 @@ pub mod error;
 pub mod extent;
 pub mod materials;
 pub mod mercator;
+pub mod point;
 pub mod pyramid;
 pub mod render;
 pub mod request;
@@ -36,7 +38,8 @@ pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flig
 pub use chain::{Chain, DictionaryBand};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
-    encode_mapbox_png, encode_rgba_png, encode_terrarium_png, NAN_FILL_HEIGHT_M,
+    encode_mapbox_png, encode_mapbox_webp, encode_rgba_png, encode_rgba_webp, encode_terrarium_png,
+    encode_terrarium_webp, NAN_FILL_HEIGHT_M,
 };
 pub use error::TileError;
 pub use extent::Extent;

@@ -13,7 +13,8 @@ use terrasynth_core::landscape::{colour_of, quantise_weights};
 use terrasynth_core::synth::Window;
 
 use crate::encode::{
-    encode_float_exr, encode_gray_png, encode_mapbox_png, encode_rgba_png, encode_terrarium_png,
+    encode_float_exr, encode_gray_png, encode_mapbox_png, encode_mapbox_webp, encode_rgba_png,
+    encode_rgba_webp, encode_terrarium_png, encode_terrarium_webp,
 };
 use crate::error::TileError;
 use crate::request::{TileKind, TileRequest};
@@ -25,16 +26,19 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
     world.check_tile(z, x, y)?;
     let bytes = match &req.kind {
         TileKind::ElevationPng { mapbox, retina } => {
-            let heights = if *retina {
-                let w = Window::new(i64::from(x) * 512, i64::from(y) * 512, 512, 512);
-                Arc::new(world.elevation_window(z + 1, w)?)
-            } else {
-                world.elevation_tile(z, x, y)?
-            };
+            let heights = elevation_heights(world, z, x, y, *retina)?;
             if *mapbox {
                 encode_mapbox_png(&heights)?
             } else {
                 encode_terrarium_png(&heights)?
+            }
+        }
+        TileKind::ElevationWebp { mapbox, retina } => {
+            let heights = elevation_heights(world, z, x, y, *retina)?;
+            if *mapbox {
+                encode_mapbox_webp(&heights)?
+            } else {
+                encode_terrarium_webp(&heights)?
             }
         }
         TileKind::ElevationExr => {
@@ -130,23 +134,44 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
             });
             encode_rgba_png(&rgba)?
         }
-        TileKind::Color => {
-            let (weights, shade) = world.material_tile(z, x, y)?;
-            let l = world.landscape();
-            let flat = DEFAULT_ALTITUDE_DEG.to_radians().sin();
-            let mut w = vec![0.0f32; weights.len()];
-            let rgba = Array2::from_shape_fn((256, 256), |(r, c)| {
-                for (k, v) in w.iter_mut().enumerate() {
-                    *v = weights[k][[r, c]];
-                }
-                let rgb = colour_of(l, &w);
-                // Flat ground keeps its colour; slopes facing the light brighten, others darken.
-                let f = (0.35 + 0.65 * shade[[r, c]] / flat).clamp(0.0, 1.4);
-                let px = |v: f32| (v * f).round().clamp(0.0, 255.0) as u8;
-                [px(rgb[0]), px(rgb[1]), px(rgb[2]), 255]
-            });
-            encode_rgba_png(&rgba)?
-        }
+        TileKind::Color => encode_rgba_png(&colour_map(world, z, x, y)?)?,
+        TileKind::ColorWebp => encode_rgba_webp(&colour_map(world, z, x, y)?)?,
     };
     Ok(bytes)
+}
+
+/// The heights of an elevation tile: 256 px of zoom `z`, or with `retina` the 512 px of zoom
+/// `z + 1` it covers.
+fn elevation_heights(
+    world: &World,
+    z: u8,
+    x: u32,
+    y: u32,
+    retina: bool,
+) -> Result<Arc<Array2<f32>>, TileError> {
+    if retina {
+        let w = Window::new(i64::from(x) * 512, i64::from(y) * 512, 512, 512);
+        Ok(Arc::new(world.elevation_window(z + 1, w)?))
+    } else {
+        world.elevation_tile(z, x, y)
+    }
+}
+
+/// The colour map's pixels: the baked material colour shaded by the hillshade.
+fn colour_map(world: &World, z: u8, x: u32, y: u32) -> Result<Array2<[u8; 4]>, TileError> {
+    let (weights, shade) = world.material_tile(z, x, y)?;
+    let l = world.landscape();
+    let flat = DEFAULT_ALTITUDE_DEG.to_radians().sin();
+    let mut w = vec![0.0f32; weights.len()];
+    let rgba = Array2::from_shape_fn((256, 256), |(r, c)| {
+        for (k, v) in w.iter_mut().enumerate() {
+            *v = weights[k][[r, c]];
+        }
+        let rgb = colour_of(l, &w);
+        // Flat ground keeps its colour; slopes facing the light brighten, others darken.
+        let f = (0.35 + 0.65 * shade[[r, c]] / flat).clamp(0.0, 1.4);
+        let px = |v: f32| (v * f).round().clamp(0.0, 255.0) as u8;
+        [px(rgb[0]), px(rgb[1]), px(rgb[2]), 255]
+    });
+    Ok(rgba)
 }

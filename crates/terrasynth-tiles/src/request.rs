@@ -85,6 +85,15 @@ pub enum TileKind {
     },
     /// The baked colour map, shaded by the hillshade.
     Color,
+    /// [`TileKind::ElevationPng`]'s pixels as a lossless WebP (`{y}.webp`, `{y}@2x.webp`).
+    ElevationWebp {
+        /// Mapbox Terrain-RGB instead of terrarium.
+        mapbox: bool,
+        /// 512 px (`@2x`).
+        retina: bool,
+    },
+    /// [`TileKind::Color`]'s pixels as a lossless WebP.
+    ColorWebp,
 }
 
 impl TileKind {
@@ -94,6 +103,7 @@ impl TileKind {
             TileKind::ElevationExr | TileKind::VegetationExr | TileKind::DrainageExr => {
                 "image/x-exr"
             }
+            TileKind::ElevationWebp { .. } | TileKind::ColorWebp => "image/webp",
             _ => "image/png",
         }
     }
@@ -137,7 +147,7 @@ pub fn query_map(pairs: &[(String, String)]) -> Result<HashMap<String, String>, 
 /// The query parameters a layer accepts in a format.
 fn allowed_parameters(layer: &str, ext: &str) -> &'static [&'static str] {
     match (layer, ext) {
-        ("elevation", "png") => &["encoding"],
+        ("elevation", "png" | "webp") => &["encoding"],
         ("hillshade", "png") => &["azimuth", "altitude"],
         ("vegetation", "png") => &["set", "style"],
         ("splat", "png") => &["set"],
@@ -194,7 +204,8 @@ pub fn parse_request(
     };
     let y: u32 = parse_coordinate("y", y_str)?;
     let has_format = match (layer, ext) {
-        ("elevation", "png") => true,
+        ("elevation", "png" | "webp") => true,
+        ("color", "webp") => !retina,
         ("elevation" | "vegetation" | "drainage", "exr")
         | ("hillshade" | "vegetation" | "drainage" | "splat" | "color", "png") => !retina,
         _ => false,
@@ -205,7 +216,7 @@ pub fn parse_request(
         let mut keys: Vec<&String> = query.keys().collect();
         keys.sort();
         if let Some(key) = keys.into_iter().find(|k| !allowed.contains(&k.as_str())) {
-            let applies = ["png", "exr"]
+            let applies = ["png", "exr", "webp"]
                 .iter()
                 .any(|e| allowed_parameters(layer, e).contains(&key.as_str()));
             return Err(RequestError::BadRequest(if applies {
@@ -216,7 +227,7 @@ pub fn parse_request(
         }
     }
     let kind = match (layer, ext) {
-        ("elevation", "png") => {
+        ("elevation", "png" | "webp") => {
             let mapbox = match query.get("encoding").map(String::as_str) {
                 None | Some("terrarium") => false,
                 Some("mapbox") => true,
@@ -226,8 +237,13 @@ pub fn parse_request(
                     )))
                 }
             };
-            TileKind::ElevationPng { mapbox, retina }
+            if ext == "webp" {
+                TileKind::ElevationWebp { mapbox, retina }
+            } else {
+                TileKind::ElevationPng { mapbox, retina }
+            }
         }
+        ("color", "webp") if !retina => TileKind::ColorWebp,
         ("elevation", "exr") if !retina => TileKind::ElevationExr,
         ("hillshade", "png") if !retina => {
             let azimuth = match query.get("azimuth") {

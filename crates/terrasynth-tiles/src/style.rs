@@ -44,14 +44,28 @@ fn layer_description(w: &World, layer: &str) -> Option<String> {
 /// The TileJSON of layer `layer` of world `w` served under `base` (the server's scheme and
 /// host); `None` for a layer the world does not serve.
 pub fn tilejson_of(w: &World, base: &str, layer: &str) -> Option<TileJson> {
-    if !LAYERS.contains(&layer) {
+    tilejson_in(w, base, layer, "png")
+}
+
+/// Layers served as lossless WebP too (`{y}.webp`).
+pub const WEBP_LAYERS: &[&str] = &["elevation", "color"];
+
+/// [`tilejson_of`] with tiles in `format` (`png`, or `webp` for the [`WEBP_LAYERS`]); `None` for
+/// a layer the world does not serve in that format.
+pub fn tilejson_in(w: &World, base: &str, layer: &str, format: &str) -> Option<TileJson> {
+    let served = match format {
+        "png" => true,
+        "webp" => WEBP_LAYERS.contains(&layer),
+        _ => false,
+    };
+    if !LAYERS.contains(&layer) || !served {
         return None;
     }
     let mut tj = TileJson::new(
         &format!("{base}/tiles"),
         w.name(),
         layer,
-        "png",
+        format,
         w.min_zoom(),
         w.max_zoom(),
         w.bounds(),

@@ -45,6 +45,9 @@ pub struct TileJson {
     /// Longer description of the tileset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
+    /// Format of the tiles the URLs name: `png`, `webp` (lossless) or `exr`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tile_format: Option<String>,
 }
 
 /// The attribution written by [`TileJson::new`].
@@ -83,6 +86,7 @@ impl TileJson {
             encoding: None,
             tile_size: None,
             description: None,
+            tile_format: Some(extension.to_string()),
         }
     }
 
