@@ -12,7 +12,8 @@
 //! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent.
 //! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
-//! - [`spectrum`]: FFT and radial band energy.
+//! - [`fft`](mod@fft): the radix-2 / Bluestein FFT (1D, 2D) and its naive DFT.
+//! - [`spectrum`]: radial band energy.
 //! - [`realism`]: pixel-axis anisotropy of the spectrum, drainage density, curvature values.
 //! - [`ppa`]: ridges and valleys (Profile-recognition and Polygon-breaking Algorithm), and their
 //!   agreement with D8 drainage; [`ppa_naive`]: its references.
@@ -21,6 +22,7 @@
 pub mod breach;
 mod common;
 pub mod derivatives;
+pub mod fft;
 pub mod flood;
 pub mod flow;
 pub mod hillshade;
@@ -36,6 +38,7 @@ use thiserror::Error;
 pub use breach::breach_pits;
 pub use common::{next_down, next_up};
 pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
+pub use fft::{dft_naive, fft, fft2, Complex, Radix2};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
 pub use flow::{
     accumulate_sources, d8_receivers, flow_accumulation_d8, flow_accumulation_from_receivers,
@@ -46,7 +49,7 @@ pub use metrics::{box_down, relief, rmse, wasserstein1};
 pub use realism::{
     axis_anisotropy, curvature_values, drainage_density, ANISOTROPY_WEDGE_DEG, CHANNEL_AREA_M2,
 };
-pub use spectrum::{band_energy, dft_naive, fft, fft2, Complex};
+pub use spectrum::band_energy;
 
 /// An error of an analysis function with preconditions on its arguments.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]

@@ -6,7 +6,7 @@
 
 use ndarray::Array2;
 
-use super::spectrum::{dft_naive, Complex};
+use super::fft::{dft_naive, Complex};
 use crate::raster::CellSizes;
 
 /// Size of row `r` from `v`, with the same fallbacks as the fast code (last row reused, 1 m

@@ -12,8 +12,8 @@ use std::f64::consts::PI;
 use ndarray::Array2;
 
 use super::common::{dir_geometry, row_areas};
+use super::fft::{fft2, Complex};
 use super::flow::{d8_receivers, flow_accumulation_from_receivers, D8_NONE};
-use super::spectrum::{fft2, Complex};
 use super::{curvature, priority_flood_fill};
 use crate::raster::CellSizes;
 

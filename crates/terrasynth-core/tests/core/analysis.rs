@@ -200,8 +200,8 @@ proptest! {
         }
     }
 
-    /// FFT (radix-2 and Bluestein) vs naive DFT within 1e-9 of the signal norm; inverse
-    /// round-trips.
+    /// FFT (radix-2 and Bluestein) vs naive DFT within 1e-9 of the signal norm, forward and
+    /// inverse; inverse round-trips.
     #[test]
     fn fft_matches_dft(v in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3), 1..70)) {
         let x: Vec<Complex> = v.iter().map(|&(a, b)| Complex::new(a, b)).collect();
@@ -213,13 +213,43 @@ proptest! {
         for (a, b) in f.iter().zip(&d) {
             prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * norm * n.sqrt());
         }
+        let mut g = x.clone();
+        analysis::fft(&mut g, true);
+        let di = analysis::dft_naive(&x, true);
+        for (a, b) in g.iter().zip(&di) {
+            prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * norm / n.sqrt());
+        }
         analysis::fft(&mut f, true);
         for (a, b) in f.iter().zip(&x) {
             prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * norm);
         }
     }
 
-    /// 2D FFT vs the naive 2D DFT.
+    /// The radix-2 plan (used directly by the sketch SSD search) vs the naive DFT: forward, and
+    /// inverse (unnormalised, so N times the naive inverse).
+    #[test]
+    fn radix2_matches_dft_both_ways(
+        log_n in 0u32..8,
+        v in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3), 128),
+    ) {
+        let n = 1usize << log_n;
+        let x: Vec<Complex> = v[..n].iter().map(|&(a, b)| Complex::new(a, b)).collect();
+        let norm = x.iter().map(|c| c.norm_sqr()).sum::<f64>().sqrt().max(1.0);
+        let nf = n as f64;
+        let plan = analysis::Radix2::new(n);
+        let mut f = x.clone();
+        plan.run(&mut f, false);
+        for (a, b) in f.iter().zip(&analysis::dft_naive(&x, false)) {
+            prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * norm * nf.sqrt());
+        }
+        let mut g = x.clone();
+        plan.run(&mut g, true);
+        for (a, b) in g.iter().zip(&analysis::dft_naive(&x, true)) {
+            prop_assert!(a.sub(b.scale(nf)).norm_sqr().sqrt() <= 1e-9 * norm * nf.sqrt());
+        }
+    }
+
+    /// 2D FFT vs the naive 2D DFT, forward and inverse.
     #[test]
     fn fft2_matches_dft2(rows in 1usize..20, cols in 1usize..20, seed in any::<u64>()) {
         let mut g = Lcg(seed);
@@ -230,6 +260,12 @@ proptest! {
         let scale = (rows * cols) as f64;
         for (a, b) in f.iter().zip(d.iter()) {
             prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9 * scale);
+        }
+        let mut g = x.clone();
+        analysis::fft2(&mut g, true);
+        let di = naive::dft2(&x, true);
+        for (a, b) in g.iter().zip(di.iter()) {
+            prop_assert!(a.sub(*b).norm_sqr().sqrt() <= 1e-9);
         }
     }
 

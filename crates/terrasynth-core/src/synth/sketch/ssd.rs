@@ -6,62 +6,14 @@
 //! packed into one complex one each way). [`naive_costs`] computes the same sums directly;
 //! property tests compare them.
 //!
-//! The FFT is our own: power-of-two radix-2, rows then columns, twiddles from `sin`/`cos` (no
-//! recurrences). Rows (and columns) are transformed in parallel, each exactly as it would be
-//! alone, so results do not depend on the thread count.
+//! The FFT is the crate's own [`Radix2`] (`analysis::fft`, tested against the naive DFT both
+//! ways): power-of-two lengths, rows then columns. Rows (and columns) are transformed in
+//! parallel, each exactly as it would be alone, so results do not depend on the thread count.
 
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use crate::analysis::Complex;
-
-/// A radix-2 FFT of one power-of-two length.
-#[derive(Clone, Debug)]
-struct Radix2 {
-    n: usize,
-    /// `e^{−2πik/n}`, `k < n/2`.
-    tw: Vec<Complex>,
-}
-
-impl Radix2 {
-    fn new(n: usize) -> Self {
-        let tw = (0..n / 2)
-            .map(|k| Complex::cis(-2.0 * std::f64::consts::PI * k as f64 / n as f64))
-            .collect();
-        Radix2 { n, tw }
-    }
-
-    /// In place, unnormalised; `inverse` conjugates the twiddles.
-    fn run(&self, data: &mut [Complex], inverse: bool) {
-        let n = self.n;
-        if n <= 1 || data.len() != n {
-            return;
-        }
-        let bits = n.trailing_zeros();
-        for i in 0..n {
-            let j = i.reverse_bits() >> (usize::BITS - bits);
-            if j > i {
-                data.swap(i, j);
-            }
-        }
-        let mut len = 2;
-        while len <= n {
-            let half = len / 2;
-            let step = n / len;
-            for start in (0..n).step_by(len) {
-                for k in 0..half {
-                    let w = self.tw[k * step];
-                    let w = if inverse { w.conj() } else { w };
-                    let u = data[start + k];
-                    let v = data[start + k + half].mul(w);
-                    data[start + k] = u.add(v);
-                    data[start + k + half] = u.sub(v);
-                }
-            }
-            len *= 2;
-        }
-    }
-}
+use crate::analysis::{Complex, Radix2};
 
 /// A 2-D FFT of a power-of-two `rows × cols` array (row-major).
 #[derive(Clone, Debug)]
