@@ -21,7 +21,8 @@ The output is one URL per line (`BASE/tiles/WORLD/LAYER/Z/X/Y.png`), in request 
 arguments always give the same file. Only the Python 3 standard library is used.
 
 Usage: make_trace.py [--base-url URL] [--world NAME] [--hillshade-zooms 11,13]
-                     [--retina-zooms 12] [--landscape-zooms 10,14] [--splat-zooms 13] [--stats]
+                     [--retina-zooms 12] [--landscape-zooms 10,14] [--splat-zooms 13]
+                     [--instance-zooms 14] [--stats]
 """
 
 import argparse
@@ -103,9 +104,10 @@ def parse_zooms(text):
     return {int(z) for z in text.split(",") if z.strip()}
 
 
-def generate(hillshade_zooms, retina_zooms, landscape_zooms=frozenset(), splat_zooms=frozenset()):
+def generate(hillshade_zooms, retina_zooms, landscape_zooms=frozenset(), splat_zooms=frozenset(),
+             instance_zooms=frozenset()):
     """Yield (zoom, layer, suffix, x, y) in request order; `suffix` is what follows the tile
-    row in the URL (`@2x`, or a query such as `?set=1`)."""
+    row in the URL (`@2x`, a query such as `?set=1`, or another format such as `.mvt`)."""
     cx, cy = snap(*lonlat_to_tile(*TALAS, 9))
     for zoom in range(9, 15):
         if zoom > 9:
@@ -136,6 +138,8 @@ def generate(hillshade_zooms, retina_zooms, landscape_zooms=frozenset(), splat_z
                     yield zoom, "splat", "", x, y
                     yield zoom, "splat", "?set=1", x, y
                     yield zoom, "vegetation", "", x, y
+                if zoom in instance_zooms:
+                    yield zoom, "instances", ".mvt", x, y
 
 
 def main():
@@ -154,6 +158,9 @@ def main():
     parser.add_argument("--splat-zooms", default="13",
                         help="zooms at which splat sets 0-1 and vegetation are streamed "
                              "(default %(default)s)")
+    parser.add_argument("--instance-zooms", default="",
+                        help="zooms at which the plant and rock instances (.mvt) are streamed "
+                             "(default: none)")
     parser.add_argument("--stats", action="store_true",
                         help="print request counts per zoom and layer to stderr")
     args = parser.parse_args()
@@ -163,10 +170,13 @@ def main():
     retina = parse_zooms(args.retina_zooms)
     landscape = parse_zooms(args.landscape_zooms)
     splat = parse_zooms(args.splat_zooms)
+    instances = parse_zooms(args.instance_zooms)
     counts = {}
     out = sys.stdout
-    for zoom, layer, suffix, x, y in generate(hillshade, retina, landscape, splat):
-        if suffix.startswith("?"):
+    for zoom, layer, suffix, x, y in generate(hillshade, retina, landscape, splat, instances):
+        if suffix.startswith("."):
+            url = f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}{suffix}"
+        elif suffix.startswith("?"):
             url = f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}.png{suffix}"
         else:
             url = f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}{suffix}.png"
