@@ -4,7 +4,7 @@
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
-//! ([`world`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
+//! ([`world`]), instances of plants and rocks as vector tiles ([`instances`]), tile requests ([`request`]), renderers ([`render`]), encoders ([`encode`]),
 //! TileJSON ([`tilejson`]) and styles ([`style`]). Computations are coalesced and cancelled
 //! cooperatively when nobody waits for them any more ([`cancel`]).
 //!
@@ -19,6 +19,7 @@ pub mod elevation;
 pub mod encode;
 pub mod error;
 pub mod extent;
+pub mod instances;
 pub mod materials;
 pub mod mercator;
 pub mod pyramid;

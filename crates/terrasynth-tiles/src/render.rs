@@ -1,7 +1,7 @@
 //! Renderers: a tile request computed from a world's pyramids and encoded — terrarium or mapbox
 //! PNG (256 or 512 px) and float32 EXR elevation, hillshade PNG, vegetation (RGBA channels,
 //! coloured overlay, EXR), drainage (EXR, log-alpha rivers), splat weights (RGBA per set of four
-//! materials, quantised to sum 255) and the hillshaded colour map. CPU-bound: callers run it off
+//! materials, quantised to sum 255), the hillshaded colour map and instance tiles (MVT, GeoJSON). CPU-bound: callers run it off
 //! any async runtime.
 
 use std::sync::Arc;
@@ -16,6 +16,7 @@ use crate::encode::{
     encode_float_exr, encode_gray_png, encode_mapbox_png, encode_rgba_png, encode_terrarium_png,
 };
 use crate::error::TileError;
+use crate::instances::{encode_geojson, encode_mvt};
 use crate::request::{TileKind, TileRequest};
 use crate::world::World;
 
@@ -146,6 +147,14 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
                 [px(rgb[0]), px(rgb[1]), px(rgb[2]), 255]
             });
             encode_rgba_png(&rgba)?
+        }
+        TileKind::Instances { geojson } => {
+            let placed = world.instances_tile(z, x, y)?;
+            if *geojson {
+                encode_geojson(world, z, &placed)?
+            } else {
+                encode_mvt(world, &placed, x, y)?
+            }
         }
     };
     Ok(bytes)
