@@ -519,6 +519,7 @@ impl Catalogue {
                 attribution: None,
                 fill_m: None,
                 center: None,
+                scatter: None,
             },
             &self.defaults,
         )?;

@@ -49,5 +49,5 @@ pub use request::{
     check_against_world, etag, parse_request, query_map, RequestError, TileKind, TileRequest,
 };
 pub use resample::mercator_window_from_grid;
-pub use tilejson::{TerrainEncoding, TileJson, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
+pub use tilejson::{TerrainEncoding, TileJson, VectorLayer, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
 pub use world::{MemoryPlan, World, WorldParts, WorldStats};

@@ -156,7 +156,9 @@ impl ScatterRule {
         }
         if let Some(n) = &self.name {
             if !crate::names::is_valid_name(n) {
-                return bad(format!("name `{n}` must be 1–64 letters, digits, `-` or `_`"));
+                return bad(format!(
+                    "name `{n}` must be 1–64 letters, digits, `-` or `_`"
+                ));
             }
         }
         if self.species.is_empty() && self.materials.is_empty() {
@@ -196,7 +198,10 @@ impl ScatterRule {
             return bad(format!("jitter {} must lie in [0, 1]", self.jitter));
         }
         if self.age_classes == 0 || self.age_classes > 16 {
-            return bad(format!("age_classes {} must lie in 1..=16", self.age_classes));
+            return bad(format!(
+                "age_classes {} must lie in 1..=16",
+                self.age_classes
+            ));
         }
         if !(self.exclude_weight.is_finite() && (0.0..=1.0).contains(&self.exclude_weight)) {
             return bad(format!(
@@ -218,7 +223,10 @@ impl ScatterRule {
                 return bad("survival needs min_distance_m > 0 (it bounds the clusters)".into());
             }
             if self.generations == 0 || self.generations > 6 {
-                return bad(format!("generations {} must lie in 1..=6", self.generations));
+                return bad(format!(
+                    "generations {} must lie in 1..=6",
+                    self.generations
+                ));
             }
             if self.seeds == 0 || self.seeds > 16 {
                 return bad(format!("seeds {} must lie in 1..=16", self.seeds));
@@ -580,7 +588,10 @@ mod tests {
             spacing_m: 10.0,
             min_distance_m: 3.0,
             jitter: 0.5,
-            height_m: SizeRange { min: 2.0, max: 20.0 },
+            height_m: SizeRange {
+                min: 2.0,
+                max: 20.0,
+            },
             radius_m: SizeRange { min: 0.5, max: 4.0 },
             age_classes: 3,
             seeding_radius_m: 12.0,
@@ -656,7 +667,13 @@ mod tests {
         let s = 1200.0;
         let flat = |_, _| 0.6f32;
         let cell_m = 1.0;
-        let grid = run(&rule(Method::JitteredGrid), cell_m, [0.0, 0.0, s, s], 0, flat);
+        let grid = run(
+            &rule(Method::JitteredGrid),
+            cell_m,
+            [0.0, 0.0, s, s],
+            0,
+            flat,
+        );
         let mut col = rule(Method::Collision);
         col.spacing_m = 12.0;
         col.min_distance_m = 1.0;
@@ -716,11 +733,44 @@ mod tests {
         l.scatter = vec![r.clone()];
         check_rules(&l).unwrap();
         let cases: Vec<(ScatterRule, &str)> = vec![
-            (ScatterRule { seeding_radius_m: -1.0, ..r.clone() }, "seeding_radius_m"),
-            (ScatterRule { radius_m: SizeRange { min: -1.0, max: 2.0 }, ..r.clone() }, "radius_m"),
-            (ScatterRule { species: vec!["oak".into()], ..r.clone() }, "unknown species `oak`"),
-            (ScatterRule { spacing_m: 0.0, ..r.clone() }, "spacing_m"),
-            (ScatterRule { exclude_materials: vec!["lava".into()], ..r.clone() }, "unknown material `lava`"),
+            (
+                ScatterRule {
+                    seeding_radius_m: -1.0,
+                    ..r.clone()
+                },
+                "seeding_radius_m",
+            ),
+            (
+                ScatterRule {
+                    radius_m: SizeRange {
+                        min: -1.0,
+                        max: 2.0,
+                    },
+                    ..r.clone()
+                },
+                "radius_m",
+            ),
+            (
+                ScatterRule {
+                    species: vec!["oak".into()],
+                    ..r.clone()
+                },
+                "unknown species `oak`",
+            ),
+            (
+                ScatterRule {
+                    spacing_m: 0.0,
+                    ..r.clone()
+                },
+                "spacing_m",
+            ),
+            (
+                ScatterRule {
+                    exclude_materials: vec!["lava".into()],
+                    ..r.clone()
+                },
+                "unknown material `lava`",
+            ),
         ];
         for (bad, want) in cases {
             l.scatter = vec![bad];
