@@ -11,7 +11,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
 
-use terrasynth_tiles::style::{layers_of, style_json, tilejson_of};
+use terrasynth_tiles::style::{style_json, tilejson_of, LAYERS};
 use terrasynth_tiles::{TileJson, World};
 
 use super::error::{Problem, ServerError};
@@ -58,9 +58,9 @@ fn info(w: &World, base: &str) -> WorldInfo {
         maxzoom: w.max_zoom(),
         native_zoom: w.z_base(),
         fill_m: w.fill_m(),
-        layers: layers_of(w).iter().map(|s| s.to_string()).collect(),
+        layers: LAYERS.iter().map(|s| s.to_string()).collect(),
         dictionaries: w.dictionary_ids(),
-        tilejson: layers_of(w)
+        tilejson: LAYERS
             .iter()
             .map(|l| format!("{base}/tiles/{}/{l}.json", w.name()))
             .collect(),

@@ -9,7 +9,9 @@ use crate::world::World;
 /// The vector layer of plants and rocks, served by worlds with scattering rules.
 pub const INSTANCES: &str = "instances";
 
-/// The layers world `w` serves: [`LAYERS`], and [`INSTANCES`] when it has scattering rules.
+/// The layers world `w` serves: [`LAYERS`], and [`INSTANCES`] when it has scattering rules
+/// (`/worlds` lists [`LAYERS`] only, the raster layers, so that clients iterating them as PNG
+/// layers keep working; the instances have their TileJSON and style layers).
 pub fn layers_of(w: &World) -> Vec<&'static str> {
     let mut v = LAYERS.to_vec();
     if !w.landscape().scatter.is_empty() {
