@@ -165,6 +165,18 @@ fn default_world_instance_tiles_are_deterministic_and_stand_on_the_served_ground
         format!("/tiles/tienshan/instances/{z}/{x}/{y}.json"),
         format!("/tiles/tienshan/elevation/{z}/{x}/{y}.exr"),
     ];
+    // A cold zoom-15 tile of a fresh process (whole-world layers, then seven amplified zooms)
+    // may take longer than the default deadline on a busy machine.
+    let start = |store: &std::path::Path| {
+        start_server(
+            &[],
+            &[
+                ("TERRASYNTH_CACHE_MB", "256"),
+                ("TERRASYNTH_REQUEST_TIMEOUT_S", "900"),
+            ],
+            store,
+        )
+    };
     let a = start(store.path());
     let first: Vec<Vec<u8>> = paths
         .iter()
