@@ -217,7 +217,8 @@ pub fn encode_geojson(world: &World, z: u8, placed: &[Placed]) -> Result<Vec<u8>
                 "type": "Feature",
                 "geometry": {
                     "type": "Point",
-                    "coordinates": [round_to(lon, 8), round_to(lat, 8), f64::from(p.ground_m)],
+                    // Full precision: a client finds the elevation pixel holding the point.
+                    "coordinates": [lon, lat, f64::from(p.ground_m)],
                 },
                 "properties": {
                     "kind": world.landscape().scatter[p.rule].kind,
