@@ -1,8 +1,9 @@
 //! Criterion benchmarks of the pipeline on deterministic real data (the embedded Tien Shan grid):
 //! matching (patches per second) and one amplification level (output points per second) with a
 //! warm default dictionary; OMP (codes per second at sparsity 1, 4 and 8 over the default
-//! dictionary's high-resolution atoms) and compact-terrain decoding (output points per second).
-//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact` for a part).
+//! dictionary's high-resolution atoms), compact-terrain decoding (output points per second) and
+//! the instances of a zoom-15 forest tile (instances per second).
+//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances` for a part).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -175,9 +176,58 @@ fn bench_sparse(c: &mut Criterion) {
     g.finish();
 }
 
+/// Instances (#17): every scattering rule of the default world over a zoom-15 tile (3.56 m
+/// pixels at the Tien Shan's latitude) of forest — spruce density 0.8, juniper 0.2, meadow and
+/// steppe 0.3, scree 0.2 — with its halo; instances generated per second.
+fn bench_instances(c: &mut Criterion) {
+    use terrasynth_core::landscape::scatter::{halo_px, scatter, RuleField};
+    use terrasynth_core::landscape::LandscapeConfig;
+    let l = LandscapeConfig::tienshan();
+    let cell_m = 3.56;
+    let halo = l
+        .scatter
+        .iter()
+        .map(|r| halo_px(r, cell_m))
+        .fold(0.0, f64::max) as usize;
+    let n = 256 + 2 * halo;
+    let value = |name: &str| match name {
+        "spruce" => 0.8,
+        "juniper" => 0.2,
+        "meadow" | "steppe" => 0.3,
+        "scree" => 0.2,
+        _ => 0.0,
+    };
+    let (x, y) = (23187.0 * 256.0, 12082.0 * 256.0);
+    let run = || {
+        let mut count = 0;
+        for (k, rule) in l.scatter.iter().enumerate() {
+            let layers: Vec<Array2<f32>> = rule
+                .source_names()
+                .iter()
+                .map(|s| Array2::from_elem((n, n), value(s)))
+                .collect();
+            let sources: Vec<&Array2<f32>> = layers.iter().collect();
+            let field = RuleField {
+                row0: y as i64 - halo as i64,
+                col0: x as i64 - halo as i64,
+                sources: &sources,
+                exclude: &[],
+                exclude_weight: 0.5,
+            };
+            count += scatter(rule, k as u64, cell_m, &field, [x, y, x + 256.0, y + 256.0]).len();
+        }
+        count
+    };
+    let count = run();
+    let mut g = c.benchmark_group("instances");
+    g.throughput(Throughput::Elements(count as u64));
+    g.bench_function("z15 forest tile", |b| b.iter(run));
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench, bench_sparse
+    targets = bench, bench_sparse, bench_instances
 }
 criterion_main!(benches);

@@ -65,3 +65,5 @@ done
 curl -sf "http://127.0.0.1:$PORT/healthz" >/dev/null || { log "the server did not become healthy"; exit 1; }
 log "server up on port $PORT; running the browser test"
 node ${MAP_TEST:-tests/browser/map_test.mjs} --url "http://127.0.0.1:$PORT" --out "$OUT"
+# The instance tiles (#17) rendered by MapLibre at zooms 15 and 16 (the README picture).
+[[ -n "${MAP_TEST:-}" ]] || node tests/browser/instances_test.mjs --url "http://127.0.0.1:$PORT" --out "$OUT"

@@ -57,7 +57,7 @@ fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
         ("layer" = String, Path, description = "Layer: `elevation`, `hillshade`, or any other layer the world lists in `/worlds/{world}`"),
         ("z" = String, Path, description = "Zoom"),
         ("x" = String, Path, description = "Column"),
-        ("y" = String, Path, description = "Row with the format extension: `{y}.png`, `{y}@2x.png` (512 px) or `{y}.exr` (float32)"),
+        ("y" = String, Path, description = "Row with the format extension: `{y}.png`, `{y}@2x.png` (512 px) or `{y}.exr` (float32); instances: `{y}.mvt` (Mapbox Vector Tile 2.1) or `{y}.json` (GeoJSON)"),
         ("encoding" = Option<String>, Query, description = "Elevation PNG packing: `terrarium` (default) or `mapbox`"),
         ("azimuth" = Option<String>, Query, description = "Hillshade sun azimuth, degrees (0–360, default 315)"),
         ("altitude" = Option<String>, Query, description = "Hillshade sun altitude, degrees (0–90, default 45)"),
@@ -65,7 +65,7 @@ fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
     ),
     responses(
         (status = 200, description = "The tile; strong `ETag`, `Cache-Control` from the configuration",
-            content(("image/png"), ("image/x-exr"))),
+            content(("image/png"), ("image/x-exr"), ("application/vnd.mapbox-vector-tile"), ("application/geo+json"))),
         (status = 304, description = "Not modified (the `If-None-Match` ETag matches)"),
         (status = 400, description = "Malformed or non-canonical coordinates (sign, leading zeros, percent-encoding), unknown or repeated parameters, parameters that do not apply to the format", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown world, layer or format, zoom too deep, tile outside the world", body = Problem, content_type = "application/problem+json"),

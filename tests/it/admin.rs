@@ -1144,6 +1144,43 @@ async fn api_dictionaries_and_worlds_use_their_own_species_and_materials() {
     .await;
     assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
     assert!(v["detail"].as_str().unwrap().contains("slope"), "{v}");
+    // Bad scattering rules (#17) are refused by name: a negative radius, an unknown species,
+    // a zero spacing.
+    let rule = serde_json::json!({"kind": "trees", "method": "collision", "species": ["spruce"],
+        "spacing_m": 10, "min_distance_m": 2, "height_m": {"min": 2, "max": 9},
+        "radius_m": {"min": 1, "max": 3}});
+    for (key, value, named) in [
+        (
+            "radius_m",
+            serde_json::json!({"min": -1, "max": 3}),
+            "radius_m",
+        ),
+        (
+            "species",
+            serde_json::json!(["oak"]),
+            "unknown species `oak`",
+        ),
+        ("spacing_m", serde_json::json!(0), "spacing_m"),
+    ] {
+        let mut r = rule.clone();
+        r[key] = value;
+        let (st, v) = send_json(
+            &app,
+            json(
+                Method::POST,
+                "/admin/worlds",
+                serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict],
+                    "scatter": [r]}),
+            ),
+        )
+        .await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+        let detail = v["detail"].as_str().unwrap();
+        assert!(
+            detail.contains(named) && detail.contains("scatter `trees`"),
+            "{v}"
+        );
+    }
 }
 
 /// A GeoTIFF (15″ cells, north-west corner 74° E 42.5° N) of a 500 m plain with one 2,500 m

@@ -151,3 +151,126 @@ fn default_world_landscape_agrees_with_its_served_elevation() {
     assert!(fit.crossings >= 10, "{fit:?}");
     assert!(fit.breaks.is_empty(), "{:?}", fit.breaks);
 }
+
+#[test]
+fn default_world_instance_tiles_are_deterministic_and_stand_on_the_served_ground() {
+    // Issue #17 on the real binary: a zoom-15 tile of spruce forest and steppe east of the
+    // Ala-Archa (74.75°E, 42.66°N). Two processes serve the same `.mvt` and `.json` bytes; the
+    // GeoJSON's points lie inside the tile and their third coordinate is the elevation EXR
+    // tile's pixel holding them.
+    let store = tempfile::tempdir().unwrap();
+    let (z, x, y) = (15u8, 23187u32, 12082u32);
+    let paths = [
+        format!("/tiles/tienshan/instances/{z}/{x}/{y}.mvt"),
+        format!("/tiles/tienshan/instances/{z}/{x}/{y}.json"),
+        format!("/tiles/tienshan/elevation/{z}/{x}/{y}.exr"),
+    ];
+    // A cold zoom-15 tile of a fresh process (whole-world layers, then seven amplified zooms)
+    // may take longer than the default deadline on a busy machine.
+    let start = |store: &std::path::Path| {
+        start_server(
+            &[],
+            &[
+                ("TERRASYNTH_CACHE_MB", "256"),
+                ("TERRASYNTH_REQUEST_TIMEOUT_S", "900"),
+            ],
+            store,
+        )
+    };
+    let a = start(store.path());
+    let first: Vec<Vec<u8>> = paths
+        .iter()
+        .map(|p| {
+            let (status, body) = fetch(&a, p);
+            assert_eq!(status, 200, "{p}");
+            body
+        })
+        .collect();
+    let (st, tj) = fetch(&a, "/tiles/tienshan/instances.json");
+    assert_eq!(st, 200);
+    let tj: serde_json::Value = serde_json::from_slice(&tj).unwrap();
+    assert_eq!(tj["minzoom"], 14);
+    let ids: Vec<&str> = tj["vector_layers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(ids, ["trees", "grass", "rocks"]);
+    assert_eq!(
+        fetch(&a, "/tiles/tienshan/instances/13/5796/3020.mvt").0,
+        404
+    );
+    assert_eq!(fetch(&a, "/tiles/tienshan/instances/17/0/0.mvt").0, 404);
+    assert_eq!(
+        fetch(&a, "/tiles/tienshan/instances/15/23187/12082.png").0,
+        404
+    );
+    assert_eq!(
+        fetch(&a, "/tiles/tienshan/instances/15/23187/12082.mvt?set=1").0,
+        400
+    );
+    drop(a);
+    let b = start(store.path());
+    for (p, want) in paths.iter().zip(&first) {
+        let (status, body) = fetch(&b, p);
+        assert_eq!(status, 200, "{p}");
+        assert!(body == *want, "{p} differs between processes");
+    }
+    // The GeoJSON, read as any client would.
+    let fc: serde_json::Value = serde_json::from_slice(&first[1]).unwrap();
+    assert_eq!(fc["type"], "FeatureCollection");
+    let elev = decode_float_exr(&first[2]).unwrap();
+    let elev = &elev[0].1;
+    let n = f64::from(1u32 << z);
+    let lon_of = |px: f64| px / n * 360.0 - 180.0;
+    let lat_of = |py: f64| {
+        (std::f64::consts::PI * (1.0 - 2.0 * py / n))
+            .sinh()
+            .atan()
+            .to_degrees()
+    };
+    let (west, east) = (lon_of(f64::from(x)), lon_of(f64::from(x + 1)));
+    let (north, south) = (lat_of(f64::from(y)), lat_of(f64::from(y + 1)));
+    let features = fc["features"].as_array().unwrap();
+    let mut species = std::collections::BTreeSet::new();
+    let mut checked = 0;
+    for f in features {
+        assert_eq!(f["type"], "Feature");
+        assert_eq!(f["geometry"]["type"], "Point");
+        let c = f["geometry"]["coordinates"].as_array().unwrap();
+        let (lon, lat, h) = (
+            c[0].as_f64().unwrap(),
+            c[1].as_f64().unwrap(),
+            c[2].as_f64().unwrap(),
+        );
+        assert!(
+            lon >= west && lon < east && lat <= north && lat > south,
+            "{c:?}"
+        );
+        let p = &f["properties"];
+        for k in ["species", "height_m", "radius_m", "rotation_deg", "age"] {
+            assert!(!p[k].is_null(), "{k} missing: {p}");
+        }
+        species.insert(p["species"].as_str().unwrap().to_string());
+        // The pixel holding the point, by the slippy-map formula (independent of the tiles
+        // crate); points within 1e-6 px of a pixel edge are skipped (the lon/lat round trip).
+        let fx = ((lon + 180.0) / 360.0 * n - f64::from(x)) * 256.0;
+        let lr = lat.to_radians();
+        let fy = ((1.0 - (lr.tan() + 1.0 / lr.cos()).ln() / std::f64::consts::PI) / 2.0 * n
+            - f64::from(y))
+            * 256.0;
+        let edge = |v: f64| (v - v.round()).abs() < 1e-6;
+        if edge(fx) || edge(fy) {
+            continue;
+        }
+        let want = elev[[fy.floor() as usize, fx.floor() as usize]];
+        assert_eq!(h, f64::from(want), "ground of {c:?}");
+        checked += 1;
+    }
+    eprintln!(
+        "{} instances ({species:?}), {checked} grounds checked",
+        features.len()
+    );
+    assert!(checked > 100 && species.len() >= 2, "{species:?}");
+}

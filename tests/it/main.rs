@@ -12,6 +12,8 @@
 //! - [`admin_e2e`]: the admin flow, restarts and crashes on the real binary;
 //! - [`hardening`]: one test per defect of issue #14 (bounded under abuse, one error shape,
 //!   strict parsing, store hygiene, failed authentication);
+//! - [`instances`]: instance tiles (#17): a tile alone is the window of a block, distances across
+//!   borders, coherence with the layers and the ground, counts following the density;
 //! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list;
 //! - [`webp`]: lossless WebP tiles carry the PNG tiles' pixels;
 //! - [`points`]: point queries answer the EXR tiles' values.
@@ -26,6 +28,7 @@ mod admin_e2e;
 mod cli;
 mod e2e;
 mod hardening;
+mod instances;
 mod openapi;
 mod points;
 mod server;

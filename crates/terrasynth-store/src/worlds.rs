@@ -1,6 +1,6 @@
 //! World definitions created through the admin API: what a world is made of (a base exemplar, a
-//! dictionary, zooms, matching weights, its landscape's materials and species), the rules a
-//! request must follow, and the defaults it inherits from the default world.
+//! dictionary, zooms, matching weights, its landscape's materials, species and scattering rules),
+//! the rules a request must follow, and the defaults it inherits from the default world.
 
 use std::collections::BTreeMap;
 
@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use terrasynth_core::dictionary::MatchWeights;
-use terrasynth_core::landscape::{LandscapeConfig, Material, Species};
+use terrasynth_core::landscape::{LandscapeConfig, Material, ScatterRule, Species};
 use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
 use terrasynth_core::raster::georef::{is_map_point, MAX_MERCATOR_LAT};
 use terrasynth_core::synth::{check_bands, ZoomBand};
@@ -51,6 +51,11 @@ pub struct WorldDefinition {
     /// Where map clients open, `[lon, lat]`; absent: over the base's highest-relief region.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub center: Option<[f64; 2]>,
+    /// Scattering rules of the instance tiles, each as a world file's `[[landscape.scatter]]`;
+    /// absent: the default world's (less the rules naming species or materials it lacks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub scatter: Option<Vec<ScatterRule>>,
 }
 
 /// Whether a fill is the default (not written, so definitions stored before it read the same).
@@ -112,6 +117,15 @@ pub struct WorldRequest {
     /// highest-relief region).
     #[serde(default)]
     pub center: Option<[f64; 2]>,
+    /// Scattering rules of the instance tiles, each as a world file's `[[landscape.scatter]]`
+    /// (`{"kind", "method": "jittered_grid" | "collision" | "survival", "species", "materials",
+    /// "name", "spacing_m", "min_distance_m", "jitter", "height_m", "radius_m", "age_classes",
+    /// "seeding_radius_m", "generations", "seeds", "founders", "exclude_materials",
+    /// "exclude_weight", "seed"}`; sizes `{"min", "max"}`). Default: the default world's rules
+    /// that name only the world's species and materials.
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub scatter: Option<Vec<ScatterRule>>,
 }
 
 /// One entry of a world's `dictionaries`: a bare dictionary id (every amplified zoom; worlds
@@ -252,6 +266,7 @@ impl WorldDefinition {
             attribution: r.attribution,
             fill_m: r.fill_m.unwrap_or(0.0),
             center: r.center,
+            scatter: r.scatter,
         };
         if def
             .title
@@ -352,6 +367,22 @@ impl WorldDefinition {
                     m.vegetation
                         .retain(|name, _| species.iter().any(|s| &s.name == name));
                 }
+            }
+        }
+        match &self.scatter {
+            Some(rules) => l.scatter = rules.clone(),
+            None => {
+                // The default rules go with the species and materials they name.
+                let (species, materials) = (l.species.clone(), l.materials.clone());
+                l.scatter.retain(|r| {
+                    r.species
+                        .iter()
+                        .all(|n| species.iter().any(|s| &s.name == n))
+                        && r.materials
+                            .iter()
+                            .chain(&r.exclude_materials)
+                            .all(|n| materials.iter().any(|m| &m.name == n))
+                });
             }
         }
         l.validate()

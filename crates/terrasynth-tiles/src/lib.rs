@@ -4,9 +4,10 @@
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
-//! ([`world`]) with a dictionary per zoom band ([`chain`]), tile requests ([`request`]),
-//! renderers ([`render`]), encoders ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and
-//! point queries of the served elevation ([`point`]). Computations are coalesced and cancelled
+//! ([`world`]) with a dictionary per zoom band ([`chain`]), instances of plants and rocks as vector
+//! tiles ([`instances`]), tile requests ([`request`]), renderers ([`render`]), encoders
+//! ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and point queries of the served
+//! elevation ([`point`]). Computations are coalesced and cancelled
 //! cooperatively when nobody waits for them any more ([`cancel`]).
 //!
 //! Everything here is deterministic: the bytes of a tile depend only on the world and the
@@ -21,6 +22,7 @@ pub mod elevation;
 pub mod encode;
 pub mod error;
 pub mod extent;
+pub mod instances;
 pub mod materials;
 pub mod mercator;
 pub mod point;
@@ -53,5 +55,5 @@ pub use request::{
     check_against_world, etag, parse_request, query_map, RequestError, TileKind, TileRequest,
 };
 pub use resample::mercator_window_from_grid;
-pub use tilejson::{TerrainEncoding, TileJson, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
+pub use tilejson::{TerrainEncoding, TileJson, VectorLayer, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
 pub use world::{MemoryPlan, World, WorldParts, WorldStats};

@@ -1,7 +1,7 @@
 //! Renderers: a tile request computed from a world's pyramids and encoded — terrarium or mapbox
 //! PNG (256 or 512 px) and float32 EXR elevation, hillshade PNG, vegetation (RGBA channels,
 //! coloured overlay, EXR), drainage (EXR, log-alpha rivers), splat weights (RGBA per set of four
-//! materials, quantised to sum 255) and the hillshaded colour map. CPU-bound: callers run it off
+//! materials, quantised to sum 255), the hillshaded colour map and instance tiles (MVT, GeoJSON). CPU-bound: callers run it off
 //! any async runtime.
 
 use std::sync::Arc;
@@ -17,6 +17,7 @@ use crate::encode::{
     encode_rgba_webp, encode_terrarium_png, encode_terrarium_webp,
 };
 use crate::error::TileError;
+use crate::instances::{encode_geojson, encode_mvt};
 use crate::request::{TileKind, TileRequest};
 use crate::world::World;
 
@@ -136,6 +137,14 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
         }
         TileKind::Color => encode_rgba_png(&colour_map(world, z, x, y)?)?,
         TileKind::ColorWebp => encode_rgba_webp(&colour_map(world, z, x, y)?)?,
+        TileKind::Instances { geojson } => {
+            let placed = world.instances_tile(z, x, y)?;
+            if *geojson {
+                encode_geojson(world, z, &placed)?
+            } else {
+                encode_mvt(world, &placed, x, y)?
+            }
+        }
     };
     Ok(bytes)
 }

@@ -94,6 +94,12 @@ pub enum TileKind {
     },
     /// [`TileKind::Color`]'s pixels as a lossless WebP.
     ColorWebp,
+    /// Plants and rocks: a Mapbox Vector Tile 2.1 (one layer per kind), or with `geojson` a
+    /// GeoJSON FeatureCollection in longitude/latitude with the ground elevation.
+    Instances {
+        /// GeoJSON (`.json`) instead of MVT (`.mvt`).
+        geojson: bool,
+    },
 }
 
 impl TileKind {
@@ -104,6 +110,8 @@ impl TileKind {
                 "image/x-exr"
             }
             TileKind::ElevationWebp { .. } | TileKind::ColorWebp => "image/webp",
+            TileKind::Instances { geojson: false } => "application/vnd.mapbox-vector-tile",
+            TileKind::Instances { geojson: true } => "application/geo+json",
             _ => "image/png",
         }
     }
@@ -164,9 +172,16 @@ fn parse_set(query: &HashMap<String, String>) -> Result<usize, RequestError> {
 }
 
 /// Checks the parts of a request that depend on the world: the `set` of splat (materials) and
-/// vegetation (species) tiles must exist (400 otherwise).
+/// vegetation (species) tiles must exist (400 otherwise); instance tiles exist from the world's
+/// `instances_min_zoom` on (404 otherwise).
 pub fn check_against_world(world: &World, req: &TileRequest) -> Result<(), RequestError> {
     let l = world.landscape();
+    if matches!(req.kind, TileKind::Instances { .. }) && req.z < l.instances_min_zoom {
+        return Err(RequestError::NotFound(format!(
+            "instance tiles start at zoom {} (zoom {} asked)",
+            l.instances_min_zoom, req.z
+        )));
+    }
     let (set, count, what) = match req.kind {
         TileKind::Splat { set } => (set, l.materials.len(), "materials"),
         TileKind::VegetationPng { set, .. } => (set, l.species.len().max(1), "species"),
@@ -207,7 +222,8 @@ pub fn parse_request(
         ("elevation", "png" | "webp") => true,
         ("color", "webp") => !retina,
         ("elevation" | "vegetation" | "drainage", "exr")
-        | ("hillshade" | "vegetation" | "drainage" | "splat" | "color", "png") => !retina,
+        | ("hillshade" | "vegetation" | "drainage" | "splat" | "color", "png")
+        | ("instances", "mvt" | "json") => !retina,
         _ => false,
     };
     // Unknown layers and formats are 404 below, whatever the query.
@@ -288,7 +304,12 @@ pub fn parse_request(
             set: parse_set(query)?,
         },
         ("color", "png") if !retina => TileKind::Color,
-        ("elevation" | "hillshade" | "vegetation" | "drainage" | "splat" | "color", _) => {
+        ("instances", "mvt") if !retina => TileKind::Instances { geojson: false },
+        ("instances", "json") if !retina => TileKind::Instances { geojson: true },
+        (
+            "elevation" | "hillshade" | "vegetation" | "drainage" | "splat" | "color" | "instances",
+            _,
+        ) => {
             return Err(RequestError::NotFound(format!(
                 "layer `{layer}` has no format `{}{ext}`",
                 if retina { "@2x." } else { "" }
@@ -311,6 +332,9 @@ pub fn parse_request(
 pub fn etag(world: &World, req: &TileRequest) -> String {
     let mut h = Sha256::new();
     h.update(world.fingerprint().as_bytes());
+    if matches!(req.kind, TileKind::Instances { .. }) {
+        h.update(world.scatter_fingerprint().as_bytes());
+    }
     h.update(format!("|{:?}|{}|{}|{}", req.kind, req.z, req.x, req.y).as_bytes());
     let d = h.finalize();
     let hex: String = d.iter().take(16).map(|b| format!("{b:02x}")).collect();

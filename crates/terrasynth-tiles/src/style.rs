@@ -2,8 +2,121 @@
 //! each ([`tilejson_of`]) and a MapLibre GL style (version 8) that shows them ([`style_json`]).
 //! Every URL is absolute, built on the base URL the server was reached at.
 
-use crate::tilejson::{TerrainEncoding, TileJson};
+use crate::instances::kinds;
+use crate::tilejson::{TerrainEncoding, TileJson, VectorLayer};
 use crate::world::World;
+
+/// The vector layer of plants and rocks, served by worlds with scattering rules.
+pub const INSTANCES: &str = "instances";
+
+/// The layers world `w` serves: [`LAYERS`], and [`INSTANCES`] when it has scattering rules
+/// (`/worlds` lists [`LAYERS`] only, the raster layers, so that clients iterating them as PNG
+/// layers keep working; the instances have their TileJSON and style layers).
+pub fn layers_of(w: &World) -> Vec<&'static str> {
+    let mut v = LAYERS.to_vec();
+    if !w.landscape().scatter.is_empty() {
+        v.push(INSTANCES);
+    }
+    v
+}
+
+/// The TileJSON of the instance tiles: `.mvt` from the world's `instances_min_zoom`, one
+/// vector layer per kind.
+fn instances_tilejson(w: &World, base: &str) -> TileJson {
+    let l = w.landscape();
+    let min = l.instances_min_zoom.min(w.max_zoom());
+    let mut tj = TileJson::new(
+        &format!("{base}/tiles"),
+        w.name(),
+        INSTANCES,
+        "mvt",
+        min,
+        w.max_zoom(),
+        w.bounds(),
+    )
+    .with_attribution(w.attribution())
+    .with_description(
+        "Plants and rocks: Mapbox Vector Tiles 2.1, one layer per kind, points with species, \
+         height_m, radius_m, rotation_deg, age; .json: GeoJSON [lon, lat, ground elevation]",
+    );
+    tj.center = w.center();
+    tj.name = format!("{} {INSTANCES}", w.title());
+    let fields: std::collections::BTreeMap<String, String> = [
+        ("species", "String"),
+        ("height_m", "Number"),
+        ("radius_m", "Number"),
+        ("rotation_deg", "Number"),
+        ("age", "Number"),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v.to_string()))
+    .collect();
+    tj.vector_layers = Some(
+        kinds(w)
+            .into_iter()
+            .map(|kind| VectorLayer {
+                description: Some(format!(
+                    "{kind}: {}",
+                    l.scatter
+                        .iter()
+                        .filter(|r| r.kind == kind)
+                        .flat_map(|r| r.source_names())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )),
+                id: kind,
+                fields: fields.clone(),
+                minzoom: min,
+                maxzoom: w.max_zoom(),
+            })
+            .collect(),
+    );
+    tj
+}
+
+/// The colour of each value of the instances' `species` (a MapLibre `match` expression): the
+/// species' colour, or the first material's for rocks.
+fn species_colours(w: &World) -> serde_json::Value {
+    let l = w.landscape();
+    let hex = |c: [u8; 3]| format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
+    let colour_of = |name: &str| {
+        l.species
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| s.colour)
+            .or_else(|| {
+                l.materials
+                    .iter()
+                    .find(|m| m.name == name)
+                    .map(|m| m.colour)
+            })
+            .map_or_else(|| "#808080".to_string(), hex)
+    };
+    let mut pairs: Vec<(String, String)> = Vec::new();
+    for r in &l.scatter {
+        let names: Vec<String> = match &r.name {
+            Some(n) => vec![n.clone()],
+            None => r.source_names().iter().map(|s| s.to_string()).collect(),
+        };
+        let first = r.source_names().first().map_or("", |s| *s).to_string();
+        for n in names {
+            if !pairs.iter().any(|(k, _)| *k == n) {
+                let c = colour_of(if r.name.is_some() { &first } else { &n });
+                pairs.push((n, c));
+            }
+        }
+    }
+    let mut expr = vec![
+        serde_json::json!("match"),
+        serde_json::json!(["get", "species"]),
+    ];
+    for (k, c) in pairs {
+        expr.push(serde_json::json!(k));
+        expr.push(serde_json::json!(c));
+    }
+    expr.push(serde_json::json!("#808080"));
+    serde_json::Value::Array(expr)
+}
 
 /// The layers every world serves.
 pub const LAYERS: [&str; 6] = [
@@ -53,6 +166,9 @@ pub const WEBP_LAYERS: &[&str] = &["elevation", "color"];
 /// [`tilejson_of`] with tiles in `format` (`png`, or `webp` for the [`WEBP_LAYERS`]); `None` for
 /// a layer the world does not serve in that format.
 pub fn tilejson_in(w: &World, base: &str, layer: &str, format: &str) -> Option<TileJson> {
+    if layer == INSTANCES && format == "png" && !w.landscape().scatter.is_empty() {
+        return Some(instances_tilejson(w, base));
+    }
     let served = match format {
         "png" => true,
         "webp" => WEBP_LAYERS.contains(&layer),
@@ -109,7 +225,7 @@ pub fn style_json(w: &World, base: &str) -> serde_json::Value {
         "encoding": "terrarium",
     });
     let c = w.center();
-    serde_json::json!({
+    let mut style = serde_json::json!({
         "version": 8,
         "name": w.title(),
         "center": [c[0], c[1]],
@@ -136,5 +252,41 @@ pub fn style_json(w: &World, base: &str) -> serde_json::Value {
             { "id": "drainage", "type": "raster", "source": "drainage",
               "layout": { "visibility": "visible" } },
         ],
-    })
+    });
+    add_instances(w, base, &mut style);
+    style
+}
+
+/// The instances as circles coloured by species from zoom 15 (one layer per kind, on top), for a
+/// world with scattering rules.
+fn add_instances(w: &World, base: &str, style: &mut serde_json::Value) {
+    if w.landscape().scatter.is_empty() {
+        return;
+    }
+    style["sources"][INSTANCES] = serde_json::json!({
+        "type": "vector",
+        "url": format!("{base}/tiles/{}/{INSTANCES}.json", w.name()),
+    });
+    let colours = species_colours(w);
+    if let Some(layers) = style["layers"].as_array_mut() {
+        for kind in kinds(w) {
+            layers.push(serde_json::json!({
+                "id": format!("{INSTANCES}-{kind}"),
+                "type": "circle",
+                "source": INSTANCES,
+                "source-layer": kind,
+                "minzoom": 15,
+                "layout": { "visibility": "visible" },
+                "paint": {
+                    "circle-color": colours.clone(),
+                    "circle-radius": ["interpolate", ["exponential", 2], ["zoom"],
+                        15, ["max", 1, ["*", 0.25, ["get", "radius_m"]]],
+                        18, ["max", 2, ["*", 2, ["get", "radius_m"]]]],
+                    "circle-opacity": 0.9,
+                    "circle-stroke-color": "#1a1a1a",
+                    "circle-stroke-width": 0.3,
+                },
+            }));
+        }
+    }
 }

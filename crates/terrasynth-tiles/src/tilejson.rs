@@ -16,8 +16,8 @@ pub enum TerrainEncoding {
     Mapbox,
 }
 
-/// A TileJSON 3.0.0 document (only the fields terrasynth uses; `vector_layers` is not needed for
-/// raster tiles).
+/// A TileJSON 3.0.0 document (only the fields terrasynth uses; `vector_layers` only for the
+/// vector instance tiles).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TileJson {
     /// Always [`TILEJSON_VERSION`].
@@ -48,6 +48,25 @@ pub struct TileJson {
     /// Format of the tiles the URLs name: `png`, `webp` (lossless) or `exr`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tile_format: Option<String>,
+    /// The layers of a vector tile source (TileJSON 3.0.0 `vector_layers`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vector_layers: Option<Vec<VectorLayer>>,
+}
+
+/// One layer of a vector tile source: its id (the MVT layer name) and its fields.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct VectorLayer {
+    /// The MVT layer name.
+    pub id: String,
+    /// Field names and their types (`String` or `Number`).
+    pub fields: std::collections::BTreeMap<String, String>,
+    /// What the layer holds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// Shallowest zoom with features.
+    pub minzoom: u8,
+    /// Deepest zoom with features.
+    pub maxzoom: u8,
 }
 
 /// The attribution written by [`TileJson::new`].
@@ -87,6 +106,7 @@ impl TileJson {
             tile_size: None,
             description: None,
             tile_format: Some(extension.to_string()),
+            vector_layers: None,
         }
     }
 

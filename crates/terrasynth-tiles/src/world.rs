@@ -23,7 +23,9 @@ use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
 use crate::extent::{relief_center, Extent};
+use crate::instances::{instances_in, Placed};
 use crate::materials;
+use crate::pyramid::tile_window;
 use crate::vegetation::{Inputs, VegetationLevels};
 
 /// Everything a world is made of, resolved: its base, dictionary and settings.
@@ -157,7 +159,14 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
         parts.fill_m.to_bits(),
         parts.weights
     ));
-    h.update(format!("{:?}|", parts.landscape));
+    // The scattering rules determine only the instance tiles, whose ETag adds them
+    // ([`World::scatter_fingerprint`]): the other tiles keep their ETags.
+    let without_scatter = LandscapeConfig {
+        scatter: Vec::new(),
+        instances_min_zoom: terrasynth_core::landscape::scatter::DEFAULT_INSTANCES_MIN_ZOOM,
+        ..parts.landscape.clone()
+    };
+    h.update(format!("{without_scatter:?}|"));
     if let Some(s) = parts.sparsity {
         // Absent before sparse codes: worlds without the setting keep their fingerprint.
         h.update(format!("sparsity={s}|"));
@@ -247,6 +256,15 @@ impl World {
             drainage: &self.drainage,
             whole: &self.whole,
         }
+    }
+
+    /// What the instance tiles depend on beyond [`World::fingerprint`]: the scattering rules and
+    /// the zoom instance tiles start at.
+    pub fn scatter_fingerprint(&self) -> String {
+        format!(
+            "{:?}|{}",
+            self.landscape.scatter, self.landscape.instances_min_zoom
+        )
     }
 
     /// A hash of everything that determines this world's tiles (base values and georeference,
@@ -450,6 +468,27 @@ impl World {
     /// Vegetation over an arbitrary window of zoom `z`, one grid per species.
     pub fn vegetation_window(&self, z: u8, w: Window) -> Result<Vec<Array2<f32>>, TileError> {
         self.vegetation.window(self.inputs(), z, w)
+    }
+
+    /// Material weights of tile `(z, tx, ty)` of the plane (no check that it meets the world:
+    /// the instance tiles read them around a tile), and its hillshade.
+    pub fn material_weights_at(
+        &self,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
+        materials::material_tile(&self.landscape, &self.vegetation, self.inputs(), z, tx, ty)
+    }
+
+    /// The instances of tile `(z, x, y)` (after [`World::check_tile`]; below the landscape's
+    /// `instances_min_zoom`, `OutsideWorld`): every scattering rule's, with their ground.
+    pub fn instances_tile(&self, z: u8, x: u32, y: u32) -> Result<Vec<Placed>, TileError> {
+        self.check_tile(z, x, y)?;
+        if z < self.landscape.instances_min_zoom {
+            return Err(TileError::OutsideWorld { z, x, y });
+        }
+        instances_in(self, z, tile_window(i64::from(x), i64::from(y)))
     }
 
     /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),

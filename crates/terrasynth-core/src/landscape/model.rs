@@ -12,6 +12,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use super::scatter::{ScatterRule, DEFAULT_INSTANCES_MIN_ZOOM};
 use super::LandscapeError;
 
 /// A smooth trapezoid weight curve: 0 outside `[min, max]`, 1 on `[min + falloff, max − falloff]`,
@@ -202,6 +203,10 @@ pub struct LandscapeConfig {
     pub fallback_material: Option<String>,
     /// Drainage overlay style.
     pub drainage: DrainageStyle,
+    /// Scattering rules of the instance tiles (`[[landscape.scatter]]`).
+    pub scatter: Vec<ScatterRule>,
+    /// Shallowest zoom with instance tiles (default 14; they go up to `max_zoom`).
+    pub instances_min_zoom: u8,
 }
 
 impl Default for LandscapeConfig {
@@ -224,6 +229,8 @@ impl Default for LandscapeConfig {
             }],
             fallback_material: None,
             drainage: DrainageStyle::default(),
+            scatter: Vec::new(),
+            instances_min_zoom: DEFAULT_INSTANCES_MIN_ZOOM,
         }
     }
 }
@@ -319,6 +326,13 @@ impl LandscapeConfig {
                 return bad(format!("fallback_material `{f}` is not a material"));
             }
         }
+        if !(10..=24).contains(&self.instances_min_zoom) {
+            return bad(format!(
+                "instances_min_zoom {} must lie in 10..=24",
+                self.instances_min_zoom
+            ));
+        }
+        super::scatter::check_rules(self)?;
         let d = &self.drainage;
         if !(d.png_min_m2 > 0.0 && d.png_max_m2 > d.png_min_m2 && d.png_max_m2.is_finite()) {
             return bad("drainage: need 0 < png_min_m2 < png_max_m2".into());
