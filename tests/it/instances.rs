@@ -6,7 +6,7 @@
 //! mosaic at zoom 15).
 
 use terrasynth_core::synth::Window;
-use terrasynth_tiles::instances::{instances_in, Placed};
+use terrasynth_tiles::instances::{instances_in, instances_tile, Placed};
 use terrasynth_tiles::World;
 
 use terrasynth_test_support::coherence::pearson;
@@ -38,7 +38,7 @@ fn an_instance_tile_alone_is_the_window_of_a_block_and_distances_hold_across_bor
     let fresh = world();
     for (z, (x, y)) in [(15u8, Z15), (14, (Z15.0 / 2, Z15.1 / 2))] {
         let block = Window::new((i64::from(x) - 1) * 256, (i64::from(y) - 1) * 256, 768, 768);
-        let all = fresh.instances_tile(z, x, y).unwrap();
+        let all = instances_tile(&fresh, z, x, y).unwrap();
         let big = instances_in(&w, z, block).unwrap();
         let tile = Window::new(i64::from(x) * 256, i64::from(y) * 256, 256, 256);
         let window: Vec<Placed> = big.iter().filter(|p| in_window(p, tile)).copied().collect();
@@ -63,7 +63,7 @@ fn an_instance_tile_alone_is_the_window_of_a_block_and_distances_hold_across_bor
     let (x, y) = Z15;
     let mut union: Vec<Placed> = Vec::new();
     for k in 0..9u32 {
-        union.extend(w.instances_tile(15, x - 1 + k % 3, y - 1 + k / 3).unwrap());
+        union.extend(instances_tile(&w, 15, x - 1 + k % 3, y - 1 + k / 3).unwrap());
     }
     let cell_m = w.level_cell_m(15);
     let rules = &w.landscape().scatter;
@@ -105,7 +105,7 @@ fn an_instance_tile_alone_is_the_window_of_a_block_and_distances_hold_across_bor
 fn instances_stand_on_their_layers_and_on_the_elevation_tiles_ground() {
     let w = world();
     let (x, y) = Z15;
-    let placed = w.instances_tile(15, x, y).unwrap();
+    let placed = instances_tile(&w, 15, x, y).unwrap();
     let veg = w.vegetation_tile(15, x, y).unwrap();
     let (mats, _) = w.material_tile(15, x, y).unwrap();
     let elev = w.elevation_tile(15, x, y).unwrap();

@@ -17,7 +17,7 @@ use terrasynth_core::synth::Window;
 
 use crate::error::TileError;
 use crate::mercator::{mercator_to_lonlat, pixel_size_m, TILE_SIZE};
-use crate::pyramid::for_each_tile_part;
+use crate::pyramid::{for_each_tile_part, tile_window};
 use crate::world::World;
 
 /// Extent of the MVT tiles' coordinate grid (16 units per pixel).
@@ -32,6 +32,16 @@ pub struct Placed {
     pub instance: Instance,
     /// Elevation of the ground under it, metres: the value of the elevation pixel holding it.
     pub ground_m: f32,
+}
+
+/// The instances of tile `(z, x, y)` of `world` (a tile outside the world, or below the
+/// landscape's `instances_min_zoom`: `OutsideWorld`): every scattering rule's, with their ground.
+pub fn instances_tile(world: &World, z: u8, x: u32, y: u32) -> Result<Vec<Placed>, TileError> {
+    world.check_tile(z, x, y)?;
+    if z < world.landscape().instances_min_zoom {
+        return Err(TileError::OutsideWorld { z, x, y });
+    }
+    instances_in(world, z, tile_window(i64::from(x), i64::from(y)))
 }
 
 /// The instances of every rule of `world` inside window `w` of zoom `z`, in rule order, each

@@ -138,7 +138,7 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
         TileKind::Color => encode_rgba_png(&colour_map(world, z, x, y)?)?,
         TileKind::ColorWebp => encode_rgba_webp(&colour_map(world, z, x, y)?)?,
         TileKind::Instances { geojson } => {
-            let placed = world.instances_tile(z, x, y)?;
+            let placed = crate::instances::instances_tile(world, z, x, y)?;
             if *geojson {
                 encode_geojson(world, z, &placed)?
             } else {

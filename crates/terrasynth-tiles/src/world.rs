@@ -23,9 +23,7 @@ use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
 use crate::extent::{relief_center, Extent};
-use crate::instances::{instances_in, Placed};
 use crate::materials;
-use crate::pyramid::tile_window;
 use crate::vegetation::{Inputs, VegetationLevels};
 
 /// Everything a world is made of, resolved: its base, dictionary and settings.
@@ -479,16 +477,6 @@ impl World {
         ty: i64,
     ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
         materials::material_tile(&self.landscape, &self.vegetation, self.inputs(), z, tx, ty)
-    }
-
-    /// The instances of tile `(z, x, y)` (after [`World::check_tile`]; below the landscape's
-    /// `instances_min_zoom`, `OutsideWorld`): every scattering rule's, with their ground.
-    pub fn instances_tile(&self, z: u8, x: u32, y: u32) -> Result<Vec<Placed>, TileError> {
-        self.check_tile(z, x, y)?;
-        if z < self.landscape.instances_min_zoom {
-            return Err(TileError::OutsideWorld { z, x, y });
-        }
-        instances_in(self, z, tile_window(i64::from(x), i64::from(y)))
     }
 
     /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),
