@@ -705,31 +705,40 @@ async fn tile_urls_have_one_spelling_and_the_urls_clients_are_given_parse() {
     // web page) still parses.
     let (_, _, style) = send(&app, get("/styles/mini.json")).await;
     let style: serde_json::Value = serde_json::from_slice(&style).unwrap();
-    let mut templates: Vec<String> = Vec::new();
+    // (template, the source's shallowest zoom): instance tiles start at zoom 14.
+    let mut templates: Vec<(String, u64)> = Vec::new();
     for (_, source) in style["sources"].as_object().unwrap() {
+        let minzoom = source["minzoom"].as_u64().unwrap_or(0);
         if let Some(tiles) = source["tiles"].as_array() {
-            templates.extend(tiles.iter().map(|t| t.as_str().unwrap().to_string()));
+            templates.extend(
+                tiles
+                    .iter()
+                    .map(|t| (t.as_str().unwrap().to_string(), minzoom)),
+            );
         }
         if let Some(url) = source["url"].as_str() {
             let path = url.split_once("/tiles/").map(|(_, p)| p).unwrap();
             let (_, _, tj) = send(&app, get(&format!("/tiles/{path}"))).await;
             let tj: serde_json::Value = serde_json::from_slice(&tj).unwrap();
+            let minzoom = tj["minzoom"].as_u64().unwrap_or(minzoom);
             templates.extend(
                 tj["tiles"]
                     .as_array()
                     .unwrap()
                     .iter()
-                    .map(|t| t.as_str().unwrap().to_string()),
+                    .map(|t| (t.as_str().unwrap().to_string(), minzoom)),
             );
         }
     }
     assert!(!templates.is_empty());
-    for t in &templates {
+    for (t, minzoom) in &templates {
         let path = t.split_once("/tiles/").map(|(_, p)| p).unwrap();
+        // Tile 179/96 of zoom 8, or its first descendant at the source's shallowest zoom.
+        let z = (*minzoom).max(8);
         let uri = format!("/tiles/{path}")
-            .replace("{z}", "8")
-            .replace("{x}", "179")
-            .replace("{y}", "96");
+            .replace("{z}", &z.to_string())
+            .replace("{x}", &(179u64 << (z - 8)).to_string())
+            .replace("{y}", &(96u64 << (z - 8)).to_string());
         let (st, _, body) = send(&app, get(&uri)).await;
         assert_eq!(
             st,

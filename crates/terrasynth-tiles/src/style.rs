@@ -9,12 +9,19 @@ use crate::world::World;
 /// The vector layer of plants and rocks, served by worlds with scattering rules.
 pub const INSTANCES: &str = "instances";
 
+/// Whether world `w` serves instance tiles: it has scattering rules and its deepest zoom reaches
+/// their `instances_min_zoom` (else every instance tile would be 404, and no TileJSON or style
+/// source may promise them).
+pub fn serves_instances(w: &World) -> bool {
+    !w.landscape().scatter.is_empty() && w.landscape().instances_min_zoom <= w.max_zoom()
+}
+
 /// The layers world `w` serves: [`LAYERS`], and [`INSTANCES`] when it has scattering rules
 /// (`/worlds` lists [`LAYERS`] only, the raster layers, so that clients iterating them as PNG
 /// layers keep working; the instances have their TileJSON and style layers).
 pub fn layers_of(w: &World) -> Vec<&'static str> {
     let mut v = LAYERS.to_vec();
-    if !w.landscape().scatter.is_empty() {
+    if serves_instances(w) {
         v.push(INSTANCES);
     }
     v
@@ -24,7 +31,7 @@ pub fn layers_of(w: &World) -> Vec<&'static str> {
 /// vector layer per kind.
 fn instances_tilejson(w: &World, base: &str) -> TileJson {
     let l = w.landscape();
-    let min = l.instances_min_zoom.min(w.max_zoom());
+    let min = l.instances_min_zoom;
     let mut tj = TileJson::new(
         &format!("{base}/tiles"),
         w.name(),
@@ -166,7 +173,7 @@ pub const WEBP_LAYERS: &[&str] = &["elevation", "color"];
 /// [`tilejson_of`] with tiles in `format` (`png`, or `webp` for the [`WEBP_LAYERS`]); `None` for
 /// a layer the world does not serve in that format.
 pub fn tilejson_in(w: &World, base: &str, layer: &str, format: &str) -> Option<TileJson> {
-    if layer == INSTANCES && format == "png" && !w.landscape().scatter.is_empty() {
+    if layer == INSTANCES && format == "png" && serves_instances(w) {
         return Some(instances_tilejson(w, base));
     }
     let served = match format {
@@ -260,7 +267,7 @@ pub fn style_json(w: &World, base: &str) -> serde_json::Value {
 /// The instances as circles coloured by species from zoom 15 (one layer per kind, on top), for a
 /// world with scattering rules.
 fn add_instances(w: &World, base: &str, style: &mut serde_json::Value) {
-    if w.landscape().scatter.is_empty() {
+    if !serves_instances(w) {
         return;
     }
     style["sources"][INSTANCES] = serde_json::json!({
