@@ -83,27 +83,20 @@ pub async fn features(
         resp.headers_mut().insert(header::ETAG, tag_value);
         return Ok(resp);
     }
-    let permit = state
-        .synth
-        .clone()
-        .acquire_owned()
-        .await
-        .map_err(|e| ServerError::Internal(e.to_string()))?;
-    let bytes = tokio::task::spawn_blocking(move || {
-        let _permit = permit;
-        let f = world.features()?;
-        let mut trees: Vec<&FeatureTree> = Vec::new();
-        if kinds != Kinds::Valley {
-            trees.push(&f.ridges);
-        }
-        if kinds != Kinds::Ridge {
-            trees.push(&f.valleys);
-        }
-        let json = features_geojson(&trees, &world.base_georef());
-        serde_json::to_vec(&json).map_err(|e| ServerError::Internal(e.to_string()))
-    })
-    .await
-    .map_err(|e| ServerError::Internal(e.to_string()))??;
+    let bytes = state
+        .compute(move || {
+            let f = world.features()?;
+            let mut trees: Vec<&FeatureTree> = Vec::new();
+            if kinds != Kinds::Valley {
+                trees.push(&f.ridges);
+            }
+            if kinds != Kinds::Ridge {
+                trees.push(&f.valleys);
+            }
+            let json = features_geojson(&trees, &world.base_georef());
+            serde_json::to_vec(&json).map_err(|e| ServerError::Internal(e.to_string()))
+        })
+        .await?;
     let mut resp = (StatusCode::OK, Body::from(bytes)).into_response();
     let h = resp.headers_mut();
     h.insert(

@@ -117,10 +117,15 @@ pub fn method_label(m: &Method) -> &'static str {
     }
 }
 
+/// One route's series by (method label, status).
+type ByStatus = BTreeMap<(&'static str, u16), Series>;
+
 /// Request metrics, keyed by (route template, method, status), and the client-caused counters.
 #[derive(Debug, Default)]
 pub struct Metrics {
-    series: Mutex<BTreeMap<(String, &'static str, u16), Series>>,
+    /// Series by route template, then by (method, status): looked up by `&str`, so recording a
+    /// request allocates only the first time its label set is seen.
+    series: Mutex<BTreeMap<String, ByStatus>>,
     /// Counters of client-caused conditions.
     pub counters: Counters,
 }
@@ -135,7 +140,11 @@ impl Metrics {
             Ok(m) => m,
             Err(poisoned) => poisoned.into_inner(),
         };
-        let s = map.entry((route.to_string(), method, status)).or_default();
+        let by_route = match map.get_mut(route) {
+            Some(m) => m,
+            None => map.entry(route.to_string()).or_default(),
+        };
+        let s = by_route.entry((method, status)).or_default();
         s.count += 1;
         s.sum += secs;
         for (i, b) in BUCKETS.iter().enumerate() {
@@ -148,9 +157,18 @@ impl Metrics {
     /// The Prometheus text exposition of the request metrics and the worlds' counters.
     pub fn render<'a>(&self, worlds: impl Iterator<Item = &'a World>) -> String {
         let mut out = String::new();
-        let map = match self.series.lock() {
-            Ok(m) => m.clone(),
-            Err(poisoned) => poisoned.into_inner().clone(),
+        let map: Vec<((String, &'static str, u16), Series)> = {
+            let guard = match self.series.lock() {
+                Ok(m) => m,
+                Err(poisoned) => poisoned.into_inner(),
+            };
+            guard
+                .iter()
+                .flat_map(|(route, by)| {
+                    by.iter()
+                        .map(|((m, st), s)| ((route.clone(), *m, *st), s.clone()))
+                })
+                .collect()
         };
         let _ = writeln!(
             out,

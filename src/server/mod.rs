@@ -48,18 +48,18 @@ use metrics::Overload;
 async fn record_metrics(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let start = Instant::now();
     // A route template (bounded), never the path the client sent.
-    let route = req
-        .extensions()
-        .get::<MatchedPath>()
-        .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    let route = req.extensions().get::<MatchedPath>().cloned();
     let method = req.method().clone();
     let resp = next.run(req).await;
     if let Some(why) = resp.extensions().get::<Overload>() {
         state.metrics.counters.overload(*why);
     }
-    state
-        .metrics
-        .record(&route, &method, resp.status().as_u16(), start.elapsed());
+    state.metrics.record(
+        route.as_ref().map_or("unmatched", MatchedPath::as_str),
+        &method,
+        resp.status().as_u16(),
+        start.elapsed(),
+    );
     resp
 }
 

@@ -62,32 +62,23 @@ fn zoom_used(world: &World, z: Option<u8>) -> u8 {
     z.map_or(opening, |z| z.min(world.max_zoom()))
 }
 
-/// Elevations at `points` on the blocking pool, behind the synthesis semaphore.
+/// Elevations at `points`, computed through [`AppState::compute`] (queue, permit, cancellation).
 async fn compute(
     state: &AppState,
     world: std::sync::Arc<World>,
     z: u8,
     points: Vec<(f64, f64)>,
 ) -> Result<Vec<Option<f32>>, ServerError> {
-    let _slot = state.queue.enter()?;
-    let permit = state
-        .synth
-        .clone()
-        .acquire_owned()
+    state
+        .compute(move || {
+            elevations(&world, z, &points).map_err(|e| match e {
+                PointError::OutOfRange { index, why } => {
+                    ServerError::Invalid(format!("point {index}: {why}"))
+                }
+                PointError::Tile(e) => ServerError::Tile(e),
+            })
+        })
         .await
-        .map_err(|e| ServerError::Internal(e.to_string()))?;
-    tokio::task::spawn_blocking(move || {
-        let _permit = permit;
-        elevations(&world, z, &points)
-    })
-    .await
-    .map_err(|e| ServerError::Internal(e.to_string()))?
-    .map_err(|e| match e {
-        PointError::OutOfRange { index, why } => {
-            ServerError::Invalid(format!("point {index}: {why}"))
-        }
-        PointError::Tile(e) => ServerError::Tile(e),
-    })
 }
 
 fn number(query: &HashMap<String, String>, key: &str) -> Result<Option<f64>, ServerError> {

@@ -171,7 +171,7 @@ pub async fn serve(config: Config) -> Result<(), StartupError> {
         // The address clients can reach (port 0 resolved), for URLs without a valid `Host`.
         let mut c = (*state.config).clone();
         c.listen = local.to_string();
-        state.config = Arc::new(c);
+        state = state.with_config(c);
     }
     if config.server.public_url.is_empty() && local.ip().is_unspecified() {
         tracing::info!("public_url is not set: TileJSON and style URLs reflect each request's Host (set public_url behind a proxy or CDN)");

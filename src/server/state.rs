@@ -10,7 +10,7 @@ use axum::http::HeaderValue;
 use moka::sync::Cache;
 use tokio::sync::Semaphore;
 
-use terrasynth_tiles::{Flights, World};
+use terrasynth_tiles::{run_cancellable, CancelToken, Flights, World};
 
 use super::admin::Admin;
 use super::error::{ServerError, StartupError};
@@ -94,14 +94,22 @@ impl LiveWorlds {
     }
 }
 
-/// Shared state of the handlers.
+/// Shared state of the handlers: a snapshot of the live worlds and one shared [`Shared`].
 ///
-/// Cloning it (which axum does for every request's `State` extractor) takes a fresh snapshot of
-/// the live worlds into [`AppState::worlds`], so handlers read `state.worlds` as a plain map and
-/// see worlds created or deleted through the admin API at their next request.
+/// Cloning it (which axum does for every request's `State` extractor and for each middleware
+/// given the state) takes a fresh snapshot of the live worlds into [`AppState::worlds`], so
+/// handlers read `state.worlds` as a plain map and see worlds created or deleted through the
+/// admin API at their next request; everything else is one reference count ([`Shared`] is
+/// reached through `Deref`), so the clone costs two atomic increments and a read lock.
 pub struct AppState {
-    /// The worlds served (a snapshot of [`AppState::live`] taken when the state was cloned).
+    /// The worlds served (a snapshot of [`Shared::live`] taken when the state was cloned).
     pub worlds: Arc<Worlds>,
+    shared: Arc<Shared>,
+}
+
+/// What every request of a server shares.
+#[derive(Clone)]
+pub struct Shared {
     /// The live set of worlds.
     pub live: LiveWorlds,
     /// The admin API and catalogue (`None`: no store, catalogue empty, admin routes absent).
@@ -127,16 +135,16 @@ impl Clone for AppState {
     fn clone(&self) -> Self {
         AppState {
             worlds: self.live.snapshot(),
-            live: self.live.clone(),
-            admin: self.admin.clone(),
-            tile_bytes: self.tile_bytes.clone(),
-            tile_flights: self.tile_flights.clone(),
-            synth: self.synth.clone(),
-            queue: self.queue.clone(),
-            cache_control: self.cache_control.clone(),
-            metrics: self.metrics.clone(),
-            config: self.config.clone(),
+            shared: self.shared.clone(),
         }
+    }
+}
+
+impl std::ops::Deref for AppState {
+    type Target = Shared;
+
+    fn deref(&self) -> &Shared {
+        &self.shared
     }
 }
 
@@ -154,21 +162,56 @@ impl AppState {
         let bytes_capacity = config.encoded_cache_bytes();
         Ok(AppState {
             worlds: live.snapshot(),
-            live,
-            admin,
-            tile_bytes: Cache::builder()
-                .weigher(|k: &String, v: &Bytes| {
-                    u32::try_from(k.len() + v.len() + 64).unwrap_or(u32::MAX)
-                })
-                .max_capacity(bytes_capacity)
-                .build(),
-            tile_flights: Arc::new(Flights::new()),
-            synth: Arc::new(Semaphore::new(config.synth_concurrency.max(1))),
-            queue: Arc::new(Queue::new(config.synth_queue)),
-            cache_control,
-            metrics: Arc::new(Metrics::default()),
-            config: Arc::new(config.clone()),
+            shared: Arc::new(Shared {
+                live,
+                admin,
+                tile_bytes: Cache::builder()
+                    .weigher(|k: &String, v: &Bytes| {
+                        u32::try_from(k.len() + v.len() + 64).unwrap_or(u32::MAX)
+                    })
+                    .max_capacity(bytes_capacity)
+                    .build(),
+                tile_flights: Arc::new(Flights::new()),
+                synth: Arc::new(Semaphore::new(config.synth_concurrency.max(1))),
+                queue: Arc::new(Queue::new(config.synth_queue)),
+                cache_control,
+                metrics: Arc::new(Metrics::default()),
+                config: Arc::new(config.clone()),
+            }),
         })
+    }
+
+    /// The same state under other settings (the caches, queue and worlds stay shared only when
+    /// no other clone of the state exists yet: call it before serving).
+    pub fn with_config(mut self, config: ServerConfig) -> Self {
+        Arc::make_mut(&mut self.shared).config = Arc::new(config);
+        self
+    }
+
+    /// Runs a request's CPU work `f` on the blocking pool, never on a runtime thread: takes a
+    /// place in the bounded queue (full → [`ServerError::Busy`]), waits for a synthesis permit,
+    /// and runs `f` under a cancellation token that this future holds, so that synthesis `f`
+    /// starts or joins stops when the client leaves or the deadline passes, unless another
+    /// request still waits for it.
+    pub async fn compute<T: Send + 'static>(
+        &self,
+        f: impl FnOnce() -> Result<T, ServerError> + Send + 'static,
+    ) -> Result<T, ServerError> {
+        let token = CancelToken::new();
+        let _cancel_on_drop = token.cancel_on_drop();
+        let _slot = self.queue.enter()?;
+        let permit = self
+            .synth
+            .clone()
+            .acquire_owned()
+            .await
+            .map_err(|e| ServerError::Internal(e.to_string()))?;
+        tokio::task::spawn_blocking(move || {
+            let _permit = permit;
+            run_cancellable(&token, f)
+        })
+        .await
+        .map_err(|e| ServerError::Internal(e.to_string()))?
     }
 
     /// World `name` of this request's snapshot, or 404.

@@ -12,10 +12,7 @@ use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
 
-use terrasynth_tiles::{
-    check_against_world, etag, parse_request, query_map, render, run_cancellable, CancelToken,
-    RequestError,
-};
+use terrasynth_tiles::{check_against_world, etag, parse_request, query_map, render, RequestError};
 
 use super::error::{Problem, ServerError};
 use super::state::AppState;
@@ -104,36 +101,24 @@ pub async fn tile(
     let bytes = match state.tile_bytes.get(&tag) {
         Some(b) => b,
         None => {
-            // Cancelled when this future is dropped: the client left or the deadline passed.
-            let token = CancelToken::new();
-            let _cancel_on_drop = token.cancel_on_drop();
-            let _slot = state.queue.enter()?;
-            let permit = state
-                .synth
-                .clone()
-                .acquire_owned()
-                .await
-                .map_err(|e| ServerError::Internal(e.to_string()))?;
             let cache = state.tile_bytes.clone();
             let flights = state.tile_flights.clone();
             let key = tag.clone();
-            tokio::task::spawn_blocking(move || {
-                let _permit = permit;
-                run_cancellable(&token, || {
-                    flights.run(
-                        key.clone(),
-                        // A flight that ended since the lookup above may have cached it.
-                        || match cache.get(&key) {
-                            Some(b) => Ok(b),
-                            None => render(&world, &req).map(Bytes::from),
-                        },
-                        |b| cache.insert(key.clone(), b.clone()),
-                    )
+            state
+                .compute(move || {
+                    flights
+                        .run(
+                            key.clone(),
+                            // A flight that ended since the lookup above may have cached it.
+                            || match cache.get(&key) {
+                                Some(b) => Ok(b),
+                                None => render(&world, &req).map(Bytes::from),
+                            },
+                            |b| cache.insert(key.clone(), b.clone()),
+                        )
+                        .map_err(ServerError::Tile)
                 })
-                .map_err(ServerError::Tile)
-            })
-            .await
-            .map_err(|e| ServerError::Internal(e.to_string()))??
+                .await?
         }
     };
     let mut resp = respond(StatusCode::OK, Body::from(bytes));

@@ -3,39 +3,23 @@
 //! Prometheus metrics, 503 when the synthesis queue is full. Also the tile invariants of the world
 //! pyramid at the native zoom and at amplified zooms: seamlessness and zoom consistency.
 
-use std::sync::Arc;
-
 use axum::body::Body;
 use axum::http::{header, Method, Request, StatusCode};
 use ndarray::{s, Array2};
 
 use terrasynth::config::ServerConfig;
-use terrasynth::server::{app, AppState, LiveWorlds, Worlds};
 use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::LandscapeConfig;
 
-use crate::support::{decode_rgba, send};
+use crate::support::{decode_rgba, mini_router, send, small_world};
 use terrasynth_core::synth::{Amplifier, Field, Window};
 use terrasynth_tiles::{decode_mapbox_png, decode_terrarium_png, World};
 
 use terrasynth_test_support::coherence::{drainage_fit, mosaic_of, vegetation_fit};
-use terrasynth_test_support::{mini_world, small_dictionary_with_vegetation, synthetic_terrain};
-
-/// A 6°×5° world (70–76°E, 38–43°N) of synthetic terrain at 15″, native zoom 8, max zoom 11.
-fn small_world() -> World {
-    mini_world(
-        synthetic_terrain(1200, 1440, 3).mapv(|v| v + 1000.0),
-        small_dictionary_with_vegetation(2),
-        "test-dictionary",
-        11,
-        64 << 20,
-    )
-}
+use terrasynth_test_support::small_dictionary_with_vegetation;
 
 fn router(config: &ServerConfig) -> axum::Router {
-    let mut worlds = Worlds::new();
-    worlds.insert("mini".into(), Arc::new(small_world()));
-    app(AppState::new(LiveWorlds::new(worlds), None, config).unwrap())
+    mini_router(config)
 }
 
 fn get(uri: &str) -> Request<Body> {
@@ -119,6 +103,42 @@ async fn elevation_tiles_in_every_format() {
     assert_eq!(st, StatusCode::OK);
     assert_eq!(h[header::CONTENT_TYPE], "image/png");
     assert!(hs.starts_with(b"\x89PNG"));
+}
+
+/// The ETag is the first 16 bytes, in hex, of SHA-256 over the world's fingerprint (and, for
+/// instance tiles, its scatter fingerprint) and `|{kind:?}|z|x|y`: computed here the plain way, it
+/// must equal what the server's precomputed hash states give, so ETags clients hold stay valid.
+#[test]
+fn etags_equal_the_plain_hash_of_world_and_request() {
+    use sha2::{Digest, Sha256};
+    use std::collections::HashMap;
+    let world = small_world();
+    let no_query = HashMap::new();
+    let cases = [
+        ("elevation", "8", "179", "96.png"),
+        ("elevation", "9", "358", "193@2x.png"),
+        ("elevation", "10", "716", "386.exr"),
+        ("hillshade", "8", "179", "96.png"),
+        ("color", "11", "1432", "772.png"),
+        ("instances", "11", "1432", "772.mvt"),
+    ];
+    let mut seen = std::collections::HashSet::new();
+    for (layer, z, x, y) in cases {
+        let req = terrasynth_tiles::parse_request("mini", layer, z, x, y, &no_query).unwrap();
+        let mut h = Sha256::new();
+        h.update(world.fingerprint().as_bytes());
+        if layer == "instances" {
+            h.update(world.scatter_fingerprint().as_bytes());
+        }
+        h.update(format!("|{:?}|{}|{}|{}", req.kind, req.z, req.x, req.y).as_bytes());
+        let hex: String = h.finalize()[..16]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        let tag = terrasynth_tiles::etag(&world, &req);
+        assert_eq!(tag, format!("\"{hex}\""), "{layer} {z}/{x}/{y}");
+        assert!(seen.insert(tag), "ETags differ between tiles");
+    }
 }
 
 #[tokio::test]

@@ -3,12 +3,36 @@
 //! machinery itself is `terrasynth_test_support::process`).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use axum::body::{to_bytes, Body};
 use axum::http::{HeaderMap, Request, StatusCode};
 use tower::ServiceExt;
 
 pub use terrasynth_test_support::process::{self as proc, Server};
+
+use terrasynth::config::ServerConfig;
+use terrasynth::server::{app, AppState, LiveWorlds, Worlds};
+use terrasynth_test_support::{mini_world, small_dictionary_with_vegetation, synthetic_terrain};
+
+/// The test binary's small world `mini`: 6°×5° (70–76°E, 38–43°N) of synthetic terrain at 15″,
+/// native zoom 8, max zoom 11, a small dictionary with two vegetation layers.
+pub fn small_world() -> terrasynth_tiles::World {
+    mini_world(
+        synthetic_terrain(1200, 1440, 3).mapv(|v| v + 1000.0),
+        small_dictionary_with_vegetation(2),
+        "test-dictionary",
+        11,
+        64 << 20,
+    )
+}
+
+/// The real router serving [`small_world`] as `mini` under `config`, without admin.
+pub fn mini_router(config: &ServerConfig) -> axum::Router {
+    let mut worlds = Worlds::new();
+    worlds.insert("mini".into(), Arc::new(small_world()));
+    app(AppState::new(LiveWorlds::new(worlds), None, config).unwrap())
+}
 
 /// Sends `req` to `app`; the status, headers and body.
 pub async fn send(app: &axum::Router, req: Request<Body>) -> (StatusCode, HeaderMap, Vec<u8>) {

@@ -3,29 +3,16 @@
 //! with `image/webp`; TileJSON's `tile_format` and `?tile_format=webp`; the formats and
 //! parameters WebP does not have are refused.
 
-use std::sync::Arc;
-
 use axum::body::Body;
 use axum::http::{header, Request, StatusCode};
 
 use terrasynth::config::ServerConfig;
-use terrasynth::server::{app, AppState, LiveWorlds, Worlds};
-use terrasynth_test_support::{mini_world, small_dictionary_with_vegetation, synthetic_terrain};
 use terrasynth_tiles::{decode_mapbox_png, decode_terrarium_png};
 
-use crate::support::{decode_rgba, send, send_json};
+use crate::support::{decode_rgba, mini_router, send, send_json};
 
 fn router() -> axum::Router {
-    let world = mini_world(
-        synthetic_terrain(1200, 1440, 3).mapv(|v| v + 1000.0),
-        small_dictionary_with_vegetation(2),
-        "test-dictionary",
-        11,
-        64 << 20,
-    );
-    let mut worlds = Worlds::new();
-    worlds.insert("mini".into(), Arc::new(world));
-    app(AppState::new(LiveWorlds::new(worlds), None, &ServerConfig::default()).unwrap())
+    mini_router(&ServerConfig::default())
 }
 
 fn get(uri: &str) -> Request<Body> {

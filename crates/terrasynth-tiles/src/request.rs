@@ -11,7 +11,7 @@
 
 use std::collections::HashMap;
 
-use sha2::{Digest, Sha256};
+use sha2::Digest;
 use thiserror::Error;
 
 use terrasynth_core::analysis::{DEFAULT_ALTITUDE_DEG, DEFAULT_AZIMUTH_DEG};
@@ -330,15 +330,24 @@ pub fn parse_request(
 /// world's fingerprint, layer, encoding, parameters and coordinates), so that a matching
 /// `If-None-Match` is answered without computing anything.
 pub fn etag(world: &World, req: &TileRequest) -> String {
-    let mut h = Sha256::new();
-    h.update(world.fingerprint().as_bytes());
-    if matches!(req.kind, TileKind::Instances { .. }) {
-        h.update(world.scatter_fingerprint().as_bytes());
+    use std::fmt::Write;
+    let mut h = world
+        .etag_seed(matches!(req.kind, TileKind::Instances { .. }))
+        .clone();
+    let mut key = String::with_capacity(96);
+    // Writing into a String cannot fail.
+    let _ = write!(key, "|{:?}|{}|{}|{}", req.kind, req.z, req.x, req.y);
+    h.update(key.as_bytes());
+    let digest = h.finalize();
+    const HEX: &[u8; 16] = b"0123456789abcdef";
+    let mut tag = String::with_capacity(34);
+    tag.push('"');
+    for b in digest.iter().take(16) {
+        tag.push(char::from(HEX[usize::from(b >> 4)]));
+        tag.push(char::from(HEX[usize::from(b & 15)]));
     }
-    h.update(format!("|{:?}|{}|{}|{}", req.kind, req.z, req.x, req.y).as_bytes());
-    let d = h.finalize();
-    let hex: String = d.iter().take(16).map(|b| format!("{b:02x}")).collect();
-    format!("\"{hex}\"")
+    tag.push('"');
+    tag
 }
 
 #[cfg(test)]

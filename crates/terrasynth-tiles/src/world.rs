@@ -107,6 +107,8 @@ pub struct World {
     /// The chain's bands: zooms (`None`: every amplified zoom) and dictionary id.
     bands: Vec<(Option<ZoomBand>, String)>,
     fingerprint: String,
+    /// [`World::etag_seed`]: the hash states of tile ETags after the world's own part.
+    etag_seeds: [sha2::Sha256; 2],
     landscape: Arc<LandscapeConfig>,
     elevation: ElevationLevels,
     whole: WholeWorld,
@@ -123,6 +125,19 @@ impl std::fmt::Debug for World {
             .field("extent", self.elevation.extent())
             .finish_non_exhaustive()
     }
+}
+
+fn scatter_fingerprint(landscape: &LandscapeConfig) -> String {
+    format!("{:?}|{}", landscape.scatter, landscape.instances_min_zoom)
+}
+
+fn etag_seeds(fingerprint: &str, scatter: &str) -> [sha2::Sha256; 2] {
+    use sha2::{Digest, Sha256};
+    let mut tiles = Sha256::new();
+    tiles.update(fingerprint.as_bytes());
+    let mut instances = tiles.clone();
+    instances.update(scatter.as_bytes());
+    [tiles, instances]
 }
 
 /// The dictionaries' part of a fingerprint: the id of a world's single dictionary (as before
@@ -216,6 +231,7 @@ impl World {
             .center
             .or_else(|| relief_center(&parts.base))
             .unwrap_or_else(|| extent.middle());
+        let etag_seeds = etag_seeds(&fingerprint, &scatter_fingerprint(&parts.landscape));
         let landscape = Arc::new(parts.landscape);
         Ok(World {
             memory: MemoryPlan {
@@ -233,6 +249,7 @@ impl World {
                 .map(|b| (b.zooms, b.id.clone()))
                 .collect(),
             fingerprint,
+            etag_seeds,
             elevation: ElevationLevels::new(
                 parts.base,
                 parts.fill_m,
@@ -259,10 +276,14 @@ impl World {
     /// What the instance tiles depend on beyond [`World::fingerprint`]: the scattering rules and
     /// the zoom instance tiles start at.
     pub fn scatter_fingerprint(&self) -> String {
-        format!(
-            "{:?}|{}",
-            self.landscape.scatter, self.landscape.instances_min_zoom
-        )
+        scatter_fingerprint(&self.landscape)
+    }
+
+    /// The state of a tile ETag's hash after the world's part: the [`World::fingerprint`], and
+    /// for instance tiles (`instances`) the [`World::scatter_fingerprint`] after it. Hashed once
+    /// when the world is made, so that a request hashes only its own few bytes.
+    pub fn etag_seed(&self, instances: bool) -> &sha2::Sha256 {
+        &self.etag_seeds[usize::from(instances)]
     }
 
     /// A hash of everything that determines this world's tiles (base values and georeference,
