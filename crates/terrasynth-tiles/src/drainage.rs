@@ -99,12 +99,7 @@ impl DrainageLevels {
         // The routing region: the tile plus an even halo, so that it maps onto whole parent
         // pixels.
         let h = DRAIN_HALO;
-        let region = Window::new(
-            w.col0 - h,
-            w.row0 - h,
-            w.cols + 2 * h as usize,
-            w.rows + 2 * h as usize,
-        );
+        let region = w.grown(h);
         let heights = elevation.window(z, region)?;
         let cells = extent.cell_sizes(z, region.row0, region.rows);
         let filled = analysis::priority_flood_fill(&heights);

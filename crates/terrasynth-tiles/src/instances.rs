@@ -57,12 +57,7 @@ pub fn instances_in(world: &World, z: u8, w: Window) -> Result<Vec<Placed>, Tile
         .iter()
         .map(|r| halo_px(r, cell_m))
         .fold(0.0, f64::max) as i64;
-    let big = Window::new(
-        w.col0 - halo,
-        w.row0 - halo,
-        w.cols + 2 * halo as usize,
-        w.rows + 2 * halo as usize,
-    );
+    let big = w.grown(halo);
     let species = world.vegetation_window(z, big)?;
     let needs_materials = l
         .scatter

@@ -53,6 +53,16 @@ impl Window {
         }
     }
 
+    /// This window with `margin` more pixels on every side (a halo).
+    pub fn grown(&self, margin: i64) -> Self {
+        Window::from_bounds(
+            self.col0 - margin,
+            self.row0 - margin,
+            self.col1() + margin,
+            self.row1() + margin,
+        )
+    }
+
     /// One past the last column.
     pub fn col1(&self) -> i64 {
         self.col0 + self.cols as i64

@@ -360,7 +360,7 @@ impl Amplifier {
         } else {
             0
         };
-        Window::from_bounds(out.col0 - m, out.row0 - m, out.col1() + m, out.row1() + m)
+        out.grown(m)
     }
 
     /// The parent window that [`Amplifier::amplify`] needs to compute output window `out`.
