@@ -15,6 +15,7 @@ use terrasynth_tiles::{Flights, World};
 use super::admin::Admin;
 use super::error::{ServerError, StartupError};
 use super::metrics::Metrics;
+use super::pickup::Pickup;
 use super::worlds::Worlds;
 use crate::config::ServerConfig;
 
@@ -121,6 +122,8 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// Server settings.
     pub config: Arc<ServerConfig>,
+    /// Look-ups of worlds other processes created in the shared store.
+    pub pickup: Arc<Pickup>,
 }
 
 impl Clone for AppState {
@@ -136,6 +139,7 @@ impl Clone for AppState {
             cache_control: self.cache_control.clone(),
             metrics: self.metrics.clone(),
             config: self.config.clone(),
+            pickup: self.pickup.clone(),
         }
     }
 }
@@ -168,6 +172,7 @@ impl AppState {
             cache_control,
             metrics: Arc::new(Metrics::default()),
             config: Arc::new(config.clone()),
+            pickup: Arc::new(Pickup::default()),
         })
     }
 
