@@ -64,7 +64,7 @@ pub async fn features(
     Query(query): Query<HashMap<String, String>>,
     headers: HeaderMap,
 ) -> Result<Response, ServerError> {
-    let world = state.world(&name)?;
+    let world = state.find_world(&name).await?;
     let kinds = Kinds::parse(query.get("kind"))?;
     let fp = world.fingerprint();
     let tag = format!(

@@ -163,7 +163,7 @@ pub async fn world(
     Path(name): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, ServerError> {
-    let w = state.world(&name)?;
+    let w = state.find_world(&name).await?;
     let (base, vary) = base_url(&state.config, &headers);
     Ok(json_varying(info(&w, &base), vary))
 }
@@ -189,7 +189,7 @@ pub async fn tilejson(
     Query(query): Query<std::collections::HashMap<String, String>>,
     headers: HeaderMap,
 ) -> Result<Response, ServerError> {
-    let w = state.world(&name)?;
+    let w = state.find_world(&name).await?;
     let (base, vary) = base_url(&state.config, &headers);
     let format = query.get("tile_format").map_or("png", String::as_str);
     file.strip_suffix(".json")
@@ -219,7 +219,7 @@ pub async fn style(
     let name = file
         .strip_suffix(".json")
         .ok_or_else(|| ServerError::NotFound(format!("no style `{file}`")))?;
-    let w = state.world(name)?;
+    let w = state.find_world(name).await?;
     let (base, vary) = base_url(&state.config, &headers);
     Ok(json_varying(style_json(&w, &base), vary))
 }

@@ -3,7 +3,7 @@
 //! ([`tiles`], [`meta`], [`features`], point queries in [`points`], [`web`], the admin API in
 //! [`admin`]), errors as problem+json
 //! ([`error`]), Prometheus metrics ([`metrics`]), the shared state ([`state`]), world loading
-//! ([`worlds`]), start-up ([`startup`]) and the accept loop with its connection limits
+//! ([`worlds`]), worlds other replicas created in a shared store ([`pickup`]), start-up ([`startup`]) and the accept loop with its connection limits
 //! ([`connections`]). CPU work (tile synthesis and encoding) and blocking IO run on tokio's
 //! blocking pool, tiles behind a semaphore and a bounded queue; the async runtime only moves
 //! bytes. A request that outlives its deadline, or whose client leaves, cancels the synthesis
@@ -16,6 +16,7 @@ pub mod features;
 pub mod meta;
 pub mod metrics;
 pub mod openapi;
+pub mod pickup;
 pub mod points;
 pub mod startup;
 pub mod state;

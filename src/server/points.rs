@@ -111,7 +111,7 @@ pub async fn elevation_at(
     Path(name): Path<String>,
     Query(query): Query<HashMap<String, String>>,
 ) -> Result<Response, ServerError> {
-    let world = state.world(&name)?;
+    let world = state.find_world(&name).await?;
     if let Some(k) = query
         .keys()
         .find(|k| !["lon", "lat", "z"].contains(&k.as_str()))
@@ -165,7 +165,7 @@ pub async fn elevation_profile(
     Path(name): Path<String>,
     req: Request,
 ) -> Result<Response, ServerError> {
-    let world = state.world(&name)?;
+    let world = state.find_world(&name).await?;
     let body: ElevationRequest = json_body(req).await?;
     if body.points.len() > MAX_POINTS {
         return Err(ServerError::Invalid(format!(

@@ -15,6 +15,7 @@ use terrasynth_tiles::{run_cancellable, CancelToken, Flights, World};
 use super::admin::Admin;
 use super::error::{ServerError, StartupError};
 use super::metrics::Metrics;
+use super::pickup::Pickup;
 use super::worlds::Worlds;
 use crate::config::ServerConfig;
 
@@ -129,6 +130,8 @@ pub struct Shared {
     pub metrics: Arc<Metrics>,
     /// Server settings.
     pub config: Arc<ServerConfig>,
+    /// Look-ups of worlds other processes created in the shared store.
+    pub pickup: Arc<Pickup>,
 }
 
 impl Clone for AppState {
@@ -177,6 +180,7 @@ impl AppState {
                 cache_control,
                 metrics: Arc::new(Metrics::default()),
                 config: Arc::new(config.clone()),
+                pickup: Arc::new(Pickup::default()),
             }),
         })
     }

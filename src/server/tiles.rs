@@ -54,17 +54,18 @@ fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
         ("layer" = String, Path, description = "Layer: `elevation`, `hillshade`, or any other layer the world lists in `/worlds/{world}`"),
         ("z" = String, Path, description = "Zoom"),
         ("x" = String, Path, description = "Column"),
-        ("y" = String, Path, description = "Row with the format extension: `{y}.png`, `{y}@2x.png` (512 px) or `{y}.exr` (float32); instances: `{y}.mvt` (Mapbox Vector Tile 2.1) or `{y}.json` (GeoJSON)"),
+        ("y" = String, Path, description = "Row with the format extension: `{y}.png`, `{y}@2x.png` (512 px) or `{y}.exr` (float32); instances: `{y}.mvt` (Mapbox Vector Tile 2.1) or `{y}.json` (GeoJSON); contours: `{y}.mvt`"),
         ("encoding" = Option<String>, Query, description = "Elevation PNG packing: `terrarium` (default) or `mapbox`"),
         ("azimuth" = Option<String>, Query, description = "Hillshade sun azimuth, degrees (0–360, default 315)"),
         ("altitude" = Option<String>, Query, description = "Hillshade sun altitude, degrees (0–90, default 45)"),
+        ("interval" = Option<String>, Query, description = "Contour interval, metres (positive, at least a quarter of the zoom's pixel; default: the largest of 1, 2, 5 × 10^n m not above four pixels)"),
         ("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")
     ),
     responses(
         (status = 200, description = "The tile; strong `ETag`, `Cache-Control` from the configuration",
             content(("image/png"), ("image/x-exr"), ("application/vnd.mapbox-vector-tile"), ("application/geo+json"))),
         (status = 304, description = "Not modified (the `If-None-Match` ETag matches)"),
-        (status = 400, description = "Malformed or non-canonical coordinates (sign, leading zeros, percent-encoding), unknown or repeated parameters, parameters that do not apply to the format", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Malformed or non-canonical coordinates (sign, leading zeros, percent-encoding), unknown or repeated parameters, parameters that do not apply to the format, a contour interval that is not positive or too dense", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "Unknown world, layer or format, zoom too deep, tile outside the world", body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Synthesis queue full or request timed out (`Retry-After`)", body = Problem, content_type = "application/problem+json")
     )
@@ -79,7 +80,7 @@ pub async fn tile(
     let Query(pairs) =
         query.map_err(|e| RequestError::BadRequest(format!("malformed query: {e}")))?;
     let query = query_map(&pairs)?;
-    let world = state.world(world_name)?;
+    let world = state.find_world(world_name).await?;
     let req = parse_request(world_name, layer, z, x, y_ext, &query)?;
     check_against_world(&world, &req)?;
     world.check_tile(req.z, req.x, req.y)?;

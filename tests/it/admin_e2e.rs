@@ -3,7 +3,8 @@
 //! its tiles (every layer and format), restart the server and fetch the same bytes. And crash
 //! safety: SIGKILL in the middle of a dictionary build and in the middle of an upload, restart,
 //! and the store is consistent (no partial object, earlier objects intact, the interrupted job
-//! reported failed).
+//! reported failed). And replicas: a world created on one process is served by another process
+//! sharing its store within 5 s, without a restart, with the same bytes.
 
 use std::io::Write;
 use std::path::Path;
@@ -324,4 +325,81 @@ fn admin_disabled_without_a_token_on_the_real_binary() {
     );
     assert_eq!((st, json(&body)["status"].as_u64()), (404, Some(404)));
     assert_eq!(get(&s, "/openapi.json", None).0, 200);
+}
+
+#[test]
+fn a_world_created_on_one_replica_is_served_by_another_sharing_the_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store");
+    let a = serve(dir.path(), &store);
+    let b = serve(dir.path(), &store);
+    assert_eq!(get(&b, "/worlds/shared", None).0, 404);
+    assert_eq!(get(&b, "/tiles/shared/elevation/9/0/0.png", None).0, 404);
+    let exemplar = upload(&a, "alatoo", &tiff(&tienshan_crop(1600, 600, 128, 1)));
+    let (st, body) = post(
+        &a,
+        "/admin/dictionaries",
+        TOKEN,
+        "application/json",
+        serde_json::json!({"name": "alatoo", "exemplars": [exemplar], "atoms": 32, "patch": 16,
+            "stride": 8, "learning": "medoids:2", "seed": 5})
+        .to_string()
+        .as_bytes(),
+    );
+    assert_eq!(st, 202, "{}", String::from_utf8_lossy(&body));
+    let job_id = json(&body)["id"].as_str().unwrap().to_string();
+    let done = wait_until(&a, &job_id, |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    });
+    assert_eq!(done["state"], "succeeded", "{done}");
+    let dict = done["result"].as_str().unwrap().to_string();
+    let base = upload(&a, "coarse", &tiff(&tienshan_crop(1700, 700, 256, 4)));
+    let (st, body) = post(
+        &a,
+        "/admin/worlds",
+        TOKEN,
+        "application/json",
+        serde_json::json!({"name": "shared", "base": base, "dictionaries": [dict], "max_zoom": 11})
+            .to_string()
+            .as_bytes(),
+    );
+    assert_eq!(st, 201, "{}", String::from_utf8_lossy(&body));
+    let created = Instant::now();
+    // Replica b never saw the request: it finds the world in the store at its next request.
+    let info = loop {
+        let (st, body) = get(&b, "/worlds/shared", None);
+        if st == 200 {
+            break json(&body);
+        }
+        assert_eq!(st, 404);
+        assert!(
+            created.elapsed() < Duration::from_secs(5),
+            "replica b does not serve the world 5 s after its creation"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    // The same description (TileJSON URLs name the replica asked).
+    let mut on_a = json(&get(&a, "/worlds/shared", None).1);
+    let mut on_b = info.clone();
+    on_a.as_object_mut().unwrap().remove("tilejson");
+    on_b.as_object_mut().unwrap().remove("tilejson");
+    assert_eq!(on_a, on_b);
+    let native = info["native_zoom"].as_u64().unwrap() as u8;
+    let [w, s_, e, n] = [0, 1, 2, 3].map(|i| info["bounds"][i].as_f64().unwrap());
+    for z in [native, native + 2] {
+        let (x, y) = tile_of(0.5 * (w + e), 0.5 * (s_ + n), z);
+        for p in [
+            format!("/tiles/shared/elevation/{z}/{x}/{y}.png"),
+            format!("/tiles/shared/color/{z}/{x}/{y}.png"),
+        ] {
+            let (sa, ba) = get(&a, &p, None);
+            let (sb, bb) = get(&b, &p, None);
+            assert_eq!((sa, sb), (200, 200), "{p}");
+            assert!(ba == bb, "{p} differs between the replicas");
+        }
+    }
+    // Names the store does not hold stay 404, however often they are asked.
+    for _ in 0..3 {
+        assert_eq!(get(&b, "/worlds/never-made", None).0, 404);
+    }
 }

@@ -16,7 +16,9 @@
 //!   borders, coherence with the layers and the ground, counts following the density;
 //! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list;
 //! - [`webp`]: lossless WebP tiles carry the PNG tiles' pixels;
-//! - [`points`]: point queries answer the EXR tiles' values.
+//! - [`points`]: point queries answer the EXR tiles' values;
+//! - [`contours`]: contour tiles (#19): lines meet across tile borders, a tile alone is the
+//!   window of a block, lines lie on the served elevation, interval rule and index flags.
 //!
 //! Shared helpers are in [`support`] and the `terrasynth-test-support` crate.
 
@@ -26,6 +28,7 @@
 mod admin;
 mod admin_e2e;
 mod cli;
+mod contours;
 mod e2e;
 mod hardening;
 mod instances;

@@ -405,6 +405,27 @@ impl Catalogue {
         Ok(out)
     }
 
+    /// The stored definition of world `name` and its id, if the store holds one that no
+    /// configured world shadows: how a replica sharing the store picks up a world another
+    /// process created (one alias read and, when present, one object read; IO-bound).
+    pub fn stored_world(
+        &self,
+        name: &str,
+    ) -> Result<Option<(String, WorldDefinition)>, ServiceError> {
+        if self.configured.contains(name) || !terrasynth_core::names::is_valid_name(name) {
+            return Ok(None);
+        }
+        let Some(id) = self.store.alias(&format!("world.{name}"))? else {
+            return Ok(None);
+        };
+        let Some(payload) = self.store.get_object(ObjectKind::World, &id)? else {
+            return Ok(None);
+        };
+        let def = serde_json::from_slice::<WorldDefinition>(&payload)
+            .map_err(|e| ServiceError::Internal(format!("stored world `{name}`: {e}")))?;
+        Ok(Some((id, def)))
+    }
+
     /// The stored world definitions to serve at start: those a configured world does not shadow
     /// (shadowed and unreadable ones are logged and skipped).
     pub fn worlds_to_load(&self) -> Result<Vec<(String, WorldDefinition)>, ServiceError> {

@@ -1,12 +1,13 @@
 //! Fixtures and helpers shared by terrasynth's test binaries (the core crate's and the root
 //! package's), written once: synthetic terrain, small dictionaries and worlds, raster files in
 //! every upload format ([this module](self)), measures of the landscape layers' coherence with
-//! the served elevation ([`coherence`]), and `terrasynth serve` processes on free ports with small
+//! the served elevation ([`coherence`]), a Mapbox Vector Tile reader ([`mvt`]), and `terrasynth serve` processes on free ports with small
 //! HTTP helpers ([`process`]). Test code: it panics on failure like the tests that use it.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 #[cfg(feature = "tiles")]
 pub mod coherence;
+pub mod mvt;
 pub mod process;
 
 use std::sync::Arc;

@@ -5,7 +5,8 @@
 //! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
 //! ([`world`]) with a dictionary per zoom band ([`chain`]), instances of plants and rocks as vector
-//! tiles ([`instances`]), tile requests ([`request`]), renderers ([`render`]), encoders
+//! tiles ([`instances`]), contour lines of the served elevation as vector tiles ([`contours`]),
+//! tile requests ([`request`]), renderers ([`render`]), encoders
 //! ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and point queries of the served
 //! elevation ([`point`]). Computations are coalesced and cancelled
 //! cooperatively when nobody waits for them any more ([`cancel`]).
@@ -17,6 +18,7 @@
 pub mod base_layers;
 pub mod cancel;
 pub mod chain;
+pub mod contours;
 pub mod drainage;
 pub mod elevation;
 pub mod encode;

@@ -1,7 +1,8 @@
 //! Renderers: a tile request computed from a world's pyramids and encoded — terrarium or mapbox
 //! PNG (256 or 512 px) and float32 EXR elevation, hillshade PNG, vegetation (RGBA channels,
 //! coloured overlay, EXR), drainage (EXR, log-alpha rivers), splat weights (RGBA per set of four
-//! materials, quantised to sum 255), the hillshaded colour map and instance tiles (MVT, GeoJSON). CPU-bound: callers run it off
+//! materials, quantised to sum 255), the hillshaded colour map, instance tiles (MVT, GeoJSON) and
+//! contour tiles (MVT). CPU-bound: callers run it off
 //! any async runtime.
 
 use std::sync::Arc;
@@ -12,6 +13,7 @@ use terrasynth_core::analysis::{hillshade_u8, DEFAULT_ALTITUDE_DEG};
 use terrasynth_core::landscape::{colour_of, quantise_weights};
 use terrasynth_core::synth::Window;
 
+use crate::contours::encode_contours_mvt;
 use crate::encode::{
     encode_float_exr, encode_gray_png, encode_mapbox_png, encode_mapbox_webp, encode_rgba_png,
     encode_rgba_webp, encode_terrarium_png, encode_terrarium_webp,
@@ -144,6 +146,9 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
             } else {
                 encode_mvt(world, &placed, x, y)?
             }
+        }
+        TileKind::Contours { interval } => {
+            encode_contours_mvt(&crate::contours::contour_tile(world, z, x, y, *interval)?)?
         }
     };
     Ok(bytes)

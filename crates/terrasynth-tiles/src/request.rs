@@ -100,6 +100,12 @@ pub enum TileKind {
         /// GeoJSON (`.json`) instead of MVT (`.mvt`).
         geojson: bool,
     },
+    /// Contour lines of the served elevation: a Mapbox Vector Tile 2.1 with layer `contours`
+    /// ([`crate::contours`]).
+    Contours {
+        /// `?interval=` in metres; `None`: the zoom's default.
+        interval: Option<f64>,
+    },
 }
 
 impl TileKind {
@@ -110,7 +116,9 @@ impl TileKind {
                 "image/x-exr"
             }
             TileKind::ElevationWebp { .. } | TileKind::ColorWebp => "image/webp",
-            TileKind::Instances { geojson: false } => "application/vnd.mapbox-vector-tile",
+            TileKind::Instances { geojson: false } | TileKind::Contours { .. } => {
+                "application/vnd.mapbox-vector-tile"
+            }
             TileKind::Instances { geojson: true } => "application/geo+json",
             _ => "image/png",
         }
@@ -159,6 +167,7 @@ fn allowed_parameters(layer: &str, ext: &str) -> &'static [&'static str] {
         ("hillshade", "png") => &["azimuth", "altitude"],
         ("vegetation", "png") => &["set", "style"],
         ("splat", "png") => &["set"],
+        ("contours", "mvt") => &["interval"],
         _ => &[],
     }
 }
@@ -173,9 +182,17 @@ fn parse_set(query: &HashMap<String, String>) -> Result<usize, RequestError> {
 
 /// Checks the parts of a request that depend on the world: the `set` of splat (materials) and
 /// vegetation (species) tiles must exist (400 otherwise); instance tiles exist from the world's
-/// `instances_min_zoom` on (404 otherwise).
+/// `instances_min_zoom` on (404 otherwise); a contour `interval` must not be too dense for the
+/// zoom (400, [`crate::contours::check_interval`]).
 pub fn check_against_world(world: &World, req: &TileRequest) -> Result<(), RequestError> {
     let l = world.landscape();
+    if let TileKind::Contours {
+        interval: Some(interval),
+    } = req.kind
+    {
+        crate::contours::check_interval(world, req.z, interval)
+            .map_err(RequestError::BadRequest)?;
+    }
     if matches!(req.kind, TileKind::Instances { .. }) && req.z < l.instances_min_zoom {
         return Err(RequestError::NotFound(format!(
             "instance tiles start at zoom {} (zoom {} asked)",
@@ -223,7 +240,8 @@ pub fn parse_request(
         ("color", "webp") => !retina,
         ("elevation" | "vegetation" | "drainage", "exr")
         | ("hillshade" | "vegetation" | "drainage" | "splat" | "color", "png")
-        | ("instances", "mvt" | "json") => !retina,
+        | ("instances", "mvt" | "json")
+        | ("contours", "mvt") => !retina,
         _ => false,
     };
     // Unknown layers and formats are 404 below, whatever the query.
@@ -306,8 +324,23 @@ pub fn parse_request(
         ("color", "png") if !retina => TileKind::Color,
         ("instances", "mvt") if !retina => TileKind::Instances { geojson: false },
         ("instances", "json") if !retina => TileKind::Instances { geojson: true },
+        ("contours", "mvt") if !retina => TileKind::Contours {
+            interval: match query.get("interval") {
+                None => None,
+                Some(v) => {
+                    let i = parse_num::<f64>("interval", v)?;
+                    if !i.is_finite() || i <= 0.0 {
+                        return Err(RequestError::BadRequest(format!(
+                            "interval `{v}` must be a positive number of metres"
+                        )));
+                    }
+                    Some(i)
+                }
+            },
+        },
         (
-            "elevation" | "hillshade" | "vegetation" | "drainage" | "splat" | "color" | "instances",
+            "elevation" | "hillshade" | "vegetation" | "drainage" | "splat" | "color" | "instances"
+            | "contours",
             _,
         ) => {
             return Err(RequestError::NotFound(format!(
@@ -447,6 +480,24 @@ mod tests {
         assert!(matches!(
             parse("splat", "1", "0", "0.png", &[("set", "01")]),
             Err(RequestError::BadRequest(_))
+        ));
+        for v in ["0", "-5", "abc", "NaN", "inf", "1e999", ""] {
+            let r = parse("contours", "12", "0", "0.mvt", &[("interval", v)]);
+            assert!(matches!(r, Err(RequestError::BadRequest(_))), "{v}: {r:?}");
+        }
+        assert_eq!(
+            parse("contours", "12", "0", "0.mvt", &[("interval", "25")]).map(|r| r.kind),
+            Ok(TileKind::Contours {
+                interval: Some(25.0)
+            })
+        );
+        assert!(matches!(
+            parse("contours", "12", "0", "0.mvt", &[("set", "1")]),
+            Err(RequestError::BadRequest(_))
+        ));
+        assert!(matches!(
+            parse("contours", "12", "0", "0.png", &[]),
+            Err(RequestError::NotFound(_))
         ));
         // A format that does not exist stays a 404 whatever the query.
         assert!(matches!(

@@ -2,6 +2,7 @@
 //! each ([`tilejson_of`]) and a MapLibre GL style (version 8) that shows them ([`style_json`]).
 //! Every URL is absolute, built on the base URL the server was reached at.
 
+use crate::contours::{auto_interval, CONTOURS_LAYER, INDEX_EVERY};
 use crate::instances::kinds;
 use crate::tilejson::{TerrainEncoding, TileJson, VectorLayer};
 use crate::world::World;
@@ -16,15 +17,61 @@ pub fn serves_instances(w: &World) -> bool {
     !w.landscape().scatter.is_empty() && w.landscape().instances_min_zoom <= w.max_zoom()
 }
 
-/// The layers world `w` serves: [`LAYERS`], and [`INSTANCES`] when it has scattering rules
-/// (`/worlds` lists [`LAYERS`] only, the raster layers, so that clients iterating them as PNG
-/// layers keep working; the instances have their TileJSON and style layers).
+/// The vector layer of contour lines, served by every world.
+pub const CONTOURS: &str = CONTOURS_LAYER;
+
+/// The layers world `w` serves: [`LAYERS`], [`CONTOURS`], and [`INSTANCES`] when it has
+/// scattering rules (`/worlds` lists [`LAYERS`] only, the raster layers, so that clients
+/// iterating them as PNG layers keep working; the vector layers have their TileJSON and style
+/// layers).
 pub fn layers_of(w: &World) -> Vec<&'static str> {
     let mut v = LAYERS.to_vec();
+    v.push(CONTOURS);
     if serves_instances(w) {
         v.push(INSTANCES);
     }
     v
+}
+
+/// The zoom from which the style draws contours: the native zoom (coarser zooms have
+/// intervals of hundreds of metres or more).
+pub fn contours_min_zoom(w: &World) -> u8 {
+    w.z_base()
+}
+
+/// The TileJSON of the contour tiles: `.mvt` at every zoom, one vector layer `contours`.
+fn contours_tilejson(w: &World, base: &str) -> TileJson {
+    let z = w.max_zoom();
+    let mut tj = TileJson::new(
+        &format!("{base}/tiles"),
+        w.name(),
+        CONTOURS,
+        "mvt",
+        w.min_zoom(),
+        z,
+        w.bounds(),
+    )
+    .with_attribution(w.attribution())
+    .with_description(format!(
+        "Contour lines of the served elevation: Mapbox Vector Tiles 2.1, layer contours, line \
+         strings with elevation_m and index (every {INDEX_EVERY}th interval). Interval: the \
+         largest of 1, 2, 5 × 10^n m not above four pixels ({} m at zoom {z}), or ?interval= in \
+         metres (at least a quarter of a pixel)",
+        auto_interval(w.level_cell_m(z))
+    ));
+    tj.center = w.center();
+    tj.name = format!("{} {CONTOURS}", w.title());
+    tj.vector_layers = Some(vec![VectorLayer {
+        id: CONTOURS.to_string(),
+        fields: [("elevation_m", "Number"), ("index", "Boolean")]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect(),
+        description: Some("Lines of equal elevation; index lines every fifth interval".into()),
+        minzoom: w.min_zoom(),
+        maxzoom: z,
+    }]);
+    tj
 }
 
 /// The TileJSON of the instance tiles: `.mvt` from the world's `instances_min_zoom`, one
@@ -176,6 +223,9 @@ pub fn tilejson_in(w: &World, base: &str, layer: &str, format: &str) -> Option<T
     if layer == INSTANCES && format == "png" && serves_instances(w) {
         return Some(instances_tilejson(w, base));
     }
+    if layer == CONTOURS && format == "png" {
+        return Some(contours_tilejson(w, base));
+    }
     let served = match format {
         "png" => true,
         "webp" => WEBP_LAYERS.contains(&layer),
@@ -260,8 +310,41 @@ pub fn style_json(w: &World, base: &str) -> serde_json::Value {
               "layout": { "visibility": "visible" } },
         ],
     });
+    add_contours(w, base, &mut style);
     add_instances(w, base, &mut style);
     style
+}
+
+/// The contours as brown lines from the native zoom, index lines thicker (under the instances;
+/// no labels: the style has no glyphs).
+fn add_contours(w: &World, base: &str, style: &mut serde_json::Value) {
+    style["sources"][CONTOURS] = serde_json::json!({
+        "type": "vector",
+        "url": format!("{base}/tiles/{}/{CONTOURS}.json", w.name()),
+    });
+    let min = contours_min_zoom(w);
+    if let Some(layers) = style["layers"].as_array_mut() {
+        layers.push(serde_json::json!({
+            "id": CONTOURS,
+            "type": "line",
+            "source": CONTOURS,
+            "source-layer": CONTOURS_LAYER,
+            "minzoom": min,
+            "filter": ["!=", ["get", "index"], true],
+            "layout": { "visibility": "visible", "line-join": "round" },
+            "paint": { "line-color": "#7a4a1e", "line-width": 0.6, "line-opacity": 0.6 },
+        }));
+        layers.push(serde_json::json!({
+            "id": format!("{CONTOURS}-index"),
+            "type": "line",
+            "source": CONTOURS,
+            "source-layer": CONTOURS_LAYER,
+            "minzoom": min,
+            "filter": ["==", ["get", "index"], true],
+            "layout": { "visibility": "visible", "line-join": "round" },
+            "paint": { "line-color": "#6b3a12", "line-width": 1.4, "line-opacity": 0.8 },
+        }));
+    }
 }
 
 /// The instances as circles coloured by species from zoom 15 (one layer per kind, on top), for a

@@ -7,6 +7,7 @@
 //! and NaN-containing grids never panic.
 //!
 //! - [`breach`]: bounded, order-independent pit breaching (window-invariant).
+//! - [`contour`]: contour lines by marching squares (window-invariant crossings), joined.
 //! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
 //! - [`hillshade`](mod@hillshade): ESRI/GDAL hillshade.
 //! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent.
@@ -21,6 +22,7 @@
 
 pub mod breach;
 mod common;
+pub mod contour;
 pub mod derivatives;
 pub mod fft;
 pub mod flood;
@@ -37,6 +39,7 @@ use thiserror::Error;
 
 pub use breach::breach_pits;
 pub use common::{next_down, next_up};
+pub use contour::{contour_lines, contour_segments, join_segments, ContourLine};
 pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
 pub use fft::{dft_naive, fft, fft2, Complex, Radix2};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};

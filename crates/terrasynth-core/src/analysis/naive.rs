@@ -392,3 +392,87 @@ pub fn axis_anisotropy(z: &Array2<f32>) -> f64 {
     }
     (axis / na as f64) / (diag / nd as f64)
 }
+
+/// Marching squares by the classic 16-case table, level by level over every cell: the
+/// reference for [`super::contour::contour_segments`] (same conventions: `>=` is above, the
+/// crossing measured from the edge's first end, saddles resolved by the mean of the corners).
+pub fn contour_segments_naive(z: &Array2<f32>, levels: &[f64]) -> Vec<super::contour::Segment> {
+    use super::contour::{Edge, Segment};
+    let (rows, cols) = z.dim();
+    let mut out = Vec::new();
+    // Edge pairs per case (bit 3: top-left above, 2: top-right, 1: bottom-right, 0:
+    // bottom-left); edges 0 top, 1 right, 2 bottom, 3 left; saddles (5, 10) below.
+    const TABLE: [&[(usize, usize)]; 16] = [
+        &[],
+        &[(3, 2)],
+        &[(2, 1)],
+        &[(3, 1)],
+        &[(0, 1)],
+        &[],
+        &[(0, 2)],
+        &[(0, 3)],
+        &[(0, 3)],
+        &[(0, 2)],
+        &[],
+        &[(0, 1)],
+        &[(3, 1)],
+        &[(2, 1)],
+        &[(3, 2)],
+        &[],
+    ];
+    for (k, &l) in levels.iter().enumerate() {
+        for r in 0..rows.saturating_sub(1) {
+            for c in 0..cols.saturating_sub(1) {
+                let tl = f64::from(z[[r, c]]);
+                let tr = f64::from(z[[r, c + 1]]);
+                let br = f64::from(z[[r + 1, c + 1]]);
+                let bl = f64::from(z[[r + 1, c]]);
+                if [tl, tr, br, bl].iter().any(|v| !v.is_finite()) {
+                    continue;
+                }
+                let bit = |v: f64, b: usize| usize::from(v >= l) << b;
+                let case = bit(tl, 3) | bit(tr, 2) | bit(br, 1) | bit(bl, 0);
+                let (ru, cu) = (r as u32, c as u32);
+                let edge = |i: usize| -> (Edge, (f64, f64)) {
+                    let (vertical, er, ec, a, b) = match i {
+                        0 => (false, ru, cu, tl, tr),
+                        1 => (true, ru, cu + 1, tr, br),
+                        2 => (false, ru + 1, cu, bl, br),
+                        _ => (true, ru, cu, tl, bl),
+                    };
+                    let t = (l - a) / (b - a);
+                    let p = if vertical {
+                        (f64::from(ec), f64::from(er) + t)
+                    } else {
+                        (f64::from(ec) + t, f64::from(er))
+                    };
+                    (
+                        Edge {
+                            vertical,
+                            r: er,
+                            c: ec,
+                        },
+                        p,
+                    )
+                };
+                let centre_above = ((tl + tr) + (br + bl)) / 4.0 >= l;
+                let pairs: &[(usize, usize)] = match (case, centre_above) {
+                    (10, true) | (5, false) => &[(0, 1), (2, 3)],
+                    (10, false) | (5, true) => &[(0, 3), (1, 2)],
+                    _ => TABLE[case],
+                };
+                for &(i, j) in pairs {
+                    let ((a, pa), (b, pb)) = (edge(i), edge(j));
+                    out.push(Segment {
+                        level: k,
+                        a,
+                        b,
+                        pa,
+                        pb,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
