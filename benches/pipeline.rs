@@ -2,8 +2,10 @@
 //! matching (patches per second) and one amplification level (output points per second) with a
 //! warm default dictionary; OMP (codes per second at sparsity 1, 4 and 8 over the default
 //! dictionary's high-resolution atoms), compact-terrain decoding (output points per second) and
-//! the instances of a zoom-15 forest tile (instances per second).
-//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances` for a part).
+//! the instances of a zoom-15 forest tile (instances per second); one gradient-domain level
+//! (`gradient_level`, output points per second, issue #20) with a default tile set built from the
+//! same grid.
+//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances`, `-- gradient_level` for a part).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -19,7 +21,7 @@ use terrasynth_core::dictionary::format::{read_dictionary, write_dictionary};
 use terrasynth_core::dictionary::matching::{best_match_naive, MatchScratch, Query};
 use terrasynth_core::dictionary::{Dictionary, MatchWeights, Matcher};
 use terrasynth_core::raster::embedded;
-use terrasynth_core::synth::{Amplifier, Field, Window};
+use terrasynth_core::synth::{Amplifier, Field, GradientAmplifier, Window};
 
 /// The default dictionary (embedded exemplar, default options, derived layers), cached under
 /// `target/` so that repeated bench runs do not rebuild it.
@@ -225,9 +227,37 @@ fn bench_instances(c: &mut Criterion) {
     g.finish();
 }
 
+/// One gradient-domain level on windows of the real terrain (elevation only).
+fn bench_gradient(c: &mut Criterion) {
+    use terrasynth_core::dictionary::{build_gradient_tiles, GradientParams};
+    let grid = embedded::tienshan().expect("embedded grid");
+    let base = grid.filled().expect("valid data");
+    let set = build_gradient_tiles(std::slice::from_ref(&base), &GradientParams::default())
+        .expect("tile set");
+    let amp = GradientAmplifier::new(std::sync::Arc::new(set)).expect("amplifier");
+    let mut g = c.benchmark_group("gradient_level");
+    for side in [256usize, 1024] {
+        let out = Window::new(1000, 1200, side, side);
+        let need = amp.parent_window_for(out);
+        let parent = Field::elevation_only(
+            need,
+            base.slice(s![
+                need.row0 as usize..need.row0 as usize + need.rows,
+                need.col0 as usize..need.col0 as usize + need.cols
+            ])
+            .to_owned(),
+        );
+        g.throughput(Throughput::Elements(out.len() as u64));
+        g.bench_with_input(BenchmarkId::from_parameter(side), &parent, |b, p| {
+            b.iter(|| amp.amplify(p, out, 100.0).expect("amplify"))
+        });
+    }
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench, bench_sparse, bench_instances
+    targets = bench, bench_sparse, bench_instances, bench_gradient
 }
 criterion_main!(benches);

@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use terrasynth::cli::export::{self, ArchiveFormat, Shard, TileFormat};
-use terrasynth::cli::{amplify, build, compact, crop, eval, features, sketch, CliError};
+use terrasynth::cli::{amplify, build, compact, crop, eval, features, gradient, sketch, CliError};
 use terrasynth::config::ConfigError;
 use terrasynth::server::StartupError;
 use terrasynth_core::dictionary::analytic::AnalyticKind;
@@ -107,6 +107,30 @@ struct BuildCli {
     /// Do not add the derived layers (log_area, northness).
     #[arg(long)]
     no_derived: bool,
+    /// What to build: `dictionary` (patch atoms) or `gradient` (a gradient tile set, issue #20).
+    #[arg(long, value_enum, default_value_t = BuildKind::Dictionary)]
+    kind: BuildKind,
+    /// Gradient tile side in child pixels (`--kind gradient`; multiple of 4, 4–16).
+    #[arg(long, default_value_t = terrasynth_core::dictionary::GradientParams::default().tile)]
+    tile: usize,
+    /// Edge colours per layer (`--kind gradient`; 2–16).
+    #[arg(long, default_value_t = terrasynth_core::dictionary::GradientParams::default().colours)]
+    colours: usize,
+    /// Alternatives per colour combination (`--kind gradient`; 1–64).
+    #[arg(long, default_value_t = terrasynth_core::dictionary::GradientParams::default().alternatives)]
+    alternatives: usize,
+    /// Exemplar mixing in [0, 1] (`--kind gradient`).
+    #[arg(long, default_value_t = terrasynth_core::dictionary::GradientParams::default().mixing)]
+    mixing: f32,
+}
+
+/// What `dictionary build` builds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum BuildKind {
+    /// A dictionary of patch atoms.
+    Dictionary,
+    /// A gradient tile set.
+    Gradient,
 }
 
 #[derive(Args)]
@@ -409,6 +433,9 @@ fn parse_layer(s: &str) -> Result<(String, PathBuf), String> {
 }
 
 fn run_build(args: BuildCli) -> Result<(), CliError> {
+    if args.kind == BuildKind::Gradient {
+        return run_gradient_build(args);
+    }
     let bar = progress_bar();
     let build_args = build::BuildArgs {
         exemplars: args.exemplars,
@@ -439,6 +466,38 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
         summary.seconds,
         summary.bytes,
         &summary.id[..16.min(summary.id.len())]
+    );
+    Ok(())
+}
+
+fn run_gradient_build(args: BuildCli) -> Result<(), CliError> {
+    if !args.layers.is_empty() {
+        return Err(CliError::Usage(
+            "--layer is not used by --kind gradient (tile sets hold elevation gradients only)"
+                .into(),
+        ));
+    }
+    let gradient_args = gradient::GradientBuildArgs {
+        exemplars: args.exemplars,
+        default_exemplar: args.default,
+        exclude: args.exclude,
+        params: terrasynth_core::dictionary::GradientParams {
+            tile: args.tile,
+            colours: args.colours,
+            alternatives: args.alternatives,
+            mixing: args.mixing,
+            seed: args.seed,
+        },
+    };
+    let s = gradient::run(&gradient_args, &args.output)?;
+    println!(
+        "built gradient tile set {}: {}/{} colour combinations found, {:.1} s, {} bytes, id {}",
+        args.output.display(),
+        s.combinations_found,
+        s.combinations,
+        s.seconds,
+        s.bytes,
+        &s.id[..16.min(s.id.len())]
     );
     Ok(())
 }

@@ -1,5 +1,6 @@
-//! `terrasynth amplify`: amplify a DEM by `N` ×2 levels with a dictionary and write a float32
-//! GeoTIFF with the same bounds and `2^N` times finer cells (plus one GeoTIFF per extra layer).
+//! `terrasynth amplify`: amplify a DEM by `N` ×2 levels with a dictionary or a gradient tile set
+//! (told apart by the file's magic) and write a float32 GeoTIFF with the same bounds and `2^N`
+//! times finer cells (plus one GeoTIFF per extra layer).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -10,9 +11,12 @@ use ndarray::Array2;
 use super::error::CliError;
 use terrasynth_core::dictionary::derive::derived_layers;
 use terrasynth_core::dictionary::format::read_dictionary;
-use terrasynth_core::dictionary::{Dictionary, MatchWeights};
+use terrasynth_core::dictionary::gradient_format::{read_gradient_tiles, MAGIC as GRADIENT_MAGIC};
+use terrasynth_core::dictionary::{Dictionary, GradientTileSet, MatchWeights};
 use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
-use terrasynth_core::synth::{amplify_chain, Amplifier, ClampedRaster, Levers, Window};
+use terrasynth_core::synth::{
+    amplify_chain, Amplifier, ClampedRaster, GradientAmplifier, Level, Levers, Window,
+};
 
 /// Extra layers by name.
 pub type NamedLayers = Vec<(String, Array2<f32>)>;
@@ -62,6 +66,99 @@ pub fn load_dictionary(path: &Path) -> Result<Dictionary, CliError> {
     )?)
 }
 
+/// A file given to `amplify --dictionary`: a dictionary or a gradient tile set.
+#[derive(Debug)]
+pub enum LoadedAmplifier {
+    /// A dictionary (`TSDICT` magic).
+    Dictionary(Dictionary),
+    /// A gradient tile set (`TSGRAD` magic).
+    Gradient(GradientTileSet),
+}
+
+/// Reads a dictionary or a gradient tile set, told apart by the file's magic.
+pub fn load_amplifier(path: &Path) -> Result<LoadedAmplifier, CliError> {
+    let io = |source| CliError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let mut magic = [0u8; 8];
+    {
+        use std::io::Read;
+        let mut f = std::fs::File::open(path).map_err(io)?;
+        // A file shorter than the magic goes to the dictionary reader, which names the problem.
+        let _ = f.read_exact(&mut magic);
+    }
+    if magic == GRADIENT_MAGIC {
+        let f = std::fs::File::open(path).map_err(io)?;
+        return Ok(LoadedAmplifier::Gradient(read_gradient_tiles(
+            std::io::BufReader::new(f),
+            MAX_DICTIONARY_BYTES,
+        )?));
+    }
+    Ok(LoadedAmplifier::Dictionary(load_dictionary(path)?))
+}
+
+/// Amplifies `grid` by `levels` gradient-domain levels; returns the elevation grid.
+pub fn amplify_grid_gradient(
+    set: &Arc<GradientTileSet>,
+    grid: &Grid,
+    levels: u32,
+) -> Result<(Grid, NamedLayers), CliError> {
+    check_levels(levels)?;
+    let filled = grid.filled()?;
+    let base = ClampedRaster {
+        elevation: &filled,
+        layers: Vec::new(),
+    };
+    let amps = (0..levels)
+        .map(|_| GradientAmplifier::new(set.clone()))
+        .collect::<Result<Vec<_>, _>>()?;
+    amplify_levels(&amps, &base, grid, levels)
+}
+
+/// `--levels` must be 1–8.
+fn check_levels(levels: u32) -> Result<(), CliError> {
+    if levels == 0 || levels > 8 {
+        return Err(CliError::Usage(format!(
+            "--levels {levels}: expected 1 to 8"
+        )));
+    }
+    Ok(())
+}
+
+/// Runs a chain of levels of either kind over the whole of `grid` (`base` holds its filled
+/// values): the output grid with `grid`'s validity, and the extra layers.
+fn amplify_levels<L: Level>(
+    amps: &[L],
+    base: &ClampedRaster<'_>,
+    grid: &Grid,
+    levels: u32,
+) -> Result<(Grid, NamedLayers), CliError> {
+    let cells = grid.georef.cell_sizes(grid.rows());
+    let factor = 1usize << levels;
+    let too_large = || CliError::Usage(format!("{levels} levels make the output too large"));
+    let out = Window::new(
+        0,
+        0,
+        grid.cols().checked_mul(factor).ok_or_else(too_large)?,
+        grid.rows().checked_mul(factor).ok_or_else(too_large)?,
+    );
+    let field = amplify_chain(amps, base, out, cells.mean_cell())?;
+    let has_invalid = grid.valid_count() < grid.data.len();
+    let valid = has_invalid.then(|| {
+        Array2::from_shape_fn((out.rows, out.cols), |(r, c)| {
+            grid.is_valid(r >> levels, c >> levels)
+        })
+    });
+    let georef = grid.georef.refined(factor as f64);
+    let elevation = Grid {
+        data: field.elevation,
+        georef,
+        valid,
+    };
+    Ok((elevation, field.layers))
+}
+
 /// Amplifies `grid` by `levels` levels; returns the elevation grid and the extra layers.
 pub fn amplify_grid(
     dict: &Arc<Dictionary>,
@@ -80,11 +177,7 @@ pub fn amplify_grid_with(
     levels: u32,
     levers: Levers,
 ) -> Result<(Grid, NamedLayers), CliError> {
-    if levels == 0 || levels > 8 {
-        return Err(CliError::Usage(format!(
-            "--levels {levels}: expected 1 to 8"
-        )));
-    }
+    check_levels(levels)?;
     let filled = grid.filled()?;
     let cells = grid.georef.cell_sizes(grid.rows());
     // Layers the weights match on are derived from the input the same way as on exemplars.
@@ -110,28 +203,7 @@ pub fn amplify_grid_with(
     let amps = (0..levels)
         .map(|_| Amplifier::new(dict.clone(), weights).map(|a| a.with_levers(levers)))
         .collect::<Result<Vec<_>, _>>()?;
-    let factor = 1usize << levels;
-    let too_large = || CliError::Usage(format!("{levels} levels make the output too large"));
-    let out = Window::new(
-        0,
-        0,
-        grid.cols().checked_mul(factor).ok_or_else(too_large)?,
-        grid.rows().checked_mul(factor).ok_or_else(too_large)?,
-    );
-    let field = amplify_chain(&amps, &base, out, cells.mean_cell())?;
-    let has_invalid = grid.valid_count() < grid.data.len();
-    let valid = has_invalid.then(|| {
-        Array2::from_shape_fn((out.rows, out.cols), |(r, c)| {
-            grid.is_valid(r >> levels, c >> levels)
-        })
-    });
-    let georef = grid.georef.refined(factor as f64);
-    let elevation = Grid {
-        data: field.elevation,
-        georef,
-        valid,
-    };
-    Ok((elevation, field.layers))
+    amplify_levels(&amps, &base, grid, levels)
 }
 
 /// The path of extra layer `name` beside `output` (`OUT.tif` → `OUT.<name>.tif`).
@@ -150,12 +222,19 @@ pub fn layer_path(output: &Path, name: &str) -> PathBuf {
 /// Runs `amplify`.
 pub fn run(args: &AmplifyArgs) -> Result<AmplifySummary, CliError> {
     let start = Instant::now();
-    let dict = Arc::new(load_dictionary(&args.dictionary)?);
+    let loaded = load_amplifier(&args.dictionary)?;
     let raster = read_raster_file(&args.input, None, &ReadLimits::default())?;
     let grid = raster
         .elevation()
         .ok_or_else(|| CliError::Usage("the input has no elevation layer".into()))?;
-    let (out, layers) = amplify_grid_with(&dict, &args.weights, &grid, args.levels, args.levers)?;
+    let (out, layers) = match loaded {
+        LoadedAmplifier::Dictionary(d) => {
+            amplify_grid_with(&Arc::new(d), &args.weights, &grid, args.levels, args.levers)?
+        }
+        LoadedAmplifier::Gradient(set) => {
+            amplify_grid_gradient(&Arc::new(set), &grid, args.levels)?
+        }
+    };
     write_geotiff_file(&out, &args.output)?;
     let mut files = vec![args.output.display().to_string()];
     for (name, data) in layers {

@@ -1,5 +1,5 @@
 //! The command line's commands as library functions, so that they can be tested without a
-//! process: `dictionary build`, `amplify`, `eval`, `crop`, `compress`, `decompress`, `features`, `sketch` and `export`. `src/main.rs` only parses arguments
+//! process: `dictionary build` (`--kind gradient`: [`gradient`]), `amplify`, `eval`, `crop`, `compress`, `decompress`, `features`, `sketch` and `export`. `src/main.rs` only parses arguments
 //! and calls these.
 
 #![warn(clippy::arithmetic_side_effects)]
@@ -12,6 +12,7 @@ pub mod error;
 pub mod eval;
 pub mod export;
 pub mod features;
+pub mod gradient;
 pub mod sketch;
 
 pub use error::CliError;

@@ -6,6 +6,8 @@
 //! - [`web`]: the web map's routes;
 //! - [`openapi`]: the committed OpenAPI description equals the generated one;
 //! - [`cli`]: the command line (the real binary);
+//! - [`gradient_cli`]: the gradient amplifier on the command line (#20): build, amplify,
+//!   determinism, consistency, bad parameters;
 //! - [`sketch`]: feature extraction and sketch synthesis: `features` and `sketch` on the real
 //!   binary;
 //! - [`e2e`]: `terrasynth serve` on a real socket on the default world;
@@ -30,6 +32,7 @@ mod admin_e2e;
 mod cli;
 mod contours;
 mod e2e;
+mod gradient_cli;
 mod hardening;
 mod instances;
 mod openapi;

@@ -111,20 +111,20 @@ struct Header {
 }
 
 /// A writer that hashes everything written through it.
-struct HashWriter<W> {
-    inner: W,
-    hasher: Sha256,
+pub(super) struct HashWriter<W> {
+    pub(super) inner: W,
+    pub(super) hasher: Sha256,
 }
 
 impl<W: Write> HashWriter<W> {
-    fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
+    pub(super) fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.hasher.update(bytes);
         self.inner.write_all(bytes)
     }
 }
 
 /// A sink that discards bytes (used to hash without buffering).
-struct Sink;
+pub(super) struct Sink;
 
 impl Write for Sink {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
@@ -137,7 +137,7 @@ impl Write for Sink {
 
 const CHUNK_BYTES: usize = 1 << 16;
 
-fn put_f32s<W: Write>(w: &mut HashWriter<W>, values: &[f32]) -> io::Result<()> {
+pub(super) fn put_f32s<W: Write>(w: &mut HashWriter<W>, values: &[f32]) -> io::Result<()> {
     let mut buf = Vec::with_capacity(CHUNK_BYTES);
     for chunk in values.chunks(CHUNK_BYTES / 4) {
         buf.clear();
@@ -218,7 +218,7 @@ pub fn content_id(d: &Dictionary) -> Result<String, DictionaryError> {
 }
 
 /// Lowercase hexadecimal of `bytes`.
-fn hex(bytes: &[u8]) -> String {
+pub(super) fn hex(bytes: &[u8]) -> String {
     const DIGITS: &[u8; 16] = b"0123456789abcdef";
     let mut out = String::with_capacity(bytes.len() * 2);
     for &b in bytes {
@@ -229,13 +229,13 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// A reader that hashes and counts what it reads, mapping EOF to [`DictionaryError::Truncated`].
-struct HashReader<R> {
-    inner: R,
-    hasher: Sha256,
+pub(super) struct HashReader<R> {
+    pub(super) inner: R,
+    pub(super) hasher: Sha256,
 }
 
 impl<R: Read> HashReader<R> {
-    fn read_raw(&mut self, buf: &mut [u8]) -> Result<(), DictionaryError> {
+    pub(super) fn read_raw(&mut self, buf: &mut [u8]) -> Result<(), DictionaryError> {
         self.inner.read_exact(buf).map_err(|e| {
             if e.kind() == io::ErrorKind::UnexpectedEof {
                 DictionaryError::Truncated
@@ -245,14 +245,14 @@ impl<R: Read> HashReader<R> {
         })
     }
 
-    fn take(&mut self, buf: &mut [u8]) -> Result<(), DictionaryError> {
+    pub(super) fn take(&mut self, buf: &mut [u8]) -> Result<(), DictionaryError> {
         self.read_raw(buf)?;
         self.hasher.update(&*buf);
         Ok(())
     }
 
     /// Reads `count` little-endian `f32`s, growing the vector only as data arrives.
-    fn f32s(&mut self, count: u64) -> Result<Vec<f32>, DictionaryError> {
+    pub(super) fn f32s(&mut self, count: u64) -> Result<Vec<f32>, DictionaryError> {
         let mut out = Vec::new();
         let mut buf = vec![0u8; CHUNK_BYTES];
         let mut left = count;

@@ -1,11 +1,82 @@
 //! Chains of amplification levels: from a base field to any window of level `N`, computing at each
-//! level exactly the window the next one needs.
+//! level exactly the window the next one needs, with levels of either kind ([`Level`],
+//! [`AnyAmplifier`]).
 
 use ndarray::Array2;
 
 use super::error::SynthError;
 use super::field::{Field, Window};
+use super::gradient::GradientAmplifier;
 use super::level::Amplifier;
+
+/// One ×2 level of a chain: what every amplifier offers (the dictionary [`Amplifier`] and the
+/// [`GradientAmplifier`]): the parent window an output window needs, and the window-invariant
+/// amplification of that window.
+pub trait Level: Sync {
+    /// The parent window [`Level::amplify`] needs for output window `out`.
+    fn parent_window_for(&self, out: Window) -> Window;
+    /// Window `out` of this level from `parent` (covering [`Level::parent_window_for`]`(out)`),
+    /// `parent_cell_m` the parent's metric cell size.
+    fn amplify(&self, parent: &Field, out: Window, parent_cell_m: f32)
+        -> Result<Field, SynthError>;
+}
+
+impl Level for Amplifier {
+    fn parent_window_for(&self, out: Window) -> Window {
+        Amplifier::parent_window_for(self, out)
+    }
+    fn amplify(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Field, SynthError> {
+        Amplifier::amplify(self, parent, out, parent_cell_m)
+    }
+}
+
+impl Level for GradientAmplifier {
+    fn parent_window_for(&self, out: Window) -> Window {
+        GradientAmplifier::parent_window_for(self, out)
+    }
+    fn amplify(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Field, SynthError> {
+        GradientAmplifier::amplify(self, parent, out, parent_cell_m)
+    }
+}
+
+/// An amplifier of either kind, chosen per world or per zoom band.
+#[derive(Debug)]
+pub enum AnyAmplifier {
+    /// Dictionary matching (methods 1 and 2).
+    Dictionary(Box<Amplifier>),
+    /// Gradient tiles (method 3).
+    Gradient(GradientAmplifier),
+}
+
+impl Level for AnyAmplifier {
+    fn parent_window_for(&self, out: Window) -> Window {
+        match self {
+            AnyAmplifier::Dictionary(a) => a.parent_window_for(out),
+            AnyAmplifier::Gradient(g) => g.parent_window_for(out),
+        }
+    }
+    fn amplify(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Field, SynthError> {
+        match self {
+            AnyAmplifier::Dictionary(a) => a.amplify(parent, out, parent_cell_m),
+            AnyAmplifier::Gradient(g) => g.amplify(parent, out, parent_cell_m),
+        }
+    }
+}
 
 /// Reads a window of the base (level 0) plane. Implementations define the base everywhere on the
 /// plane (for example by clamping to a raster's edges), so that any window can be asked for.
@@ -56,7 +127,7 @@ impl BaseSource for ClampedRaster<'_> {
 
 /// The windows each level must compute so that level `levels.len()` covers `out`:
 /// element 0 is the base window, the last is `out`.
-pub fn chain_windows(levels: &[Amplifier], out: Window) -> Vec<Window> {
+pub fn chain_windows<L: Level>(levels: &[L], out: Window) -> Vec<Window> {
     let mut windows = vec![out];
     for amp in levels.iter().rev() {
         let next = amp.parent_window_for(windows[windows.len() - 1]);
@@ -69,8 +140,8 @@ pub fn chain_windows(levels: &[Amplifier], out: Window) -> Vec<Window> {
 /// Amplifies `levels.len()` times: reads the base window the chain needs, then runs each level on
 /// the window the next needs, ending with `out` at the last level. `base_cell_m` is the metric cell
 /// size of level 0; each level halves it.
-pub fn amplify_chain(
-    levels: &[Amplifier],
+pub fn amplify_chain<L: Level>(
+    levels: &[L],
     base: &dyn BaseSource,
     out: Window,
     base_cell_m: f64,

@@ -2,6 +2,8 @@
 //!
 //! - [`analysis`]: derivatives, flood filling, flow routing and the FFT against naive twins;
 //! - [`dictionary`]: building, learning, the format (round trips, every truncation and flip);
+//! - [`gradient`]: gradient tile sets, their format, the reconstruction against its dense
+//!   solve, the gradient amplifier's invariants;
 //! - [`matching`]: the fast matcher against the naive scan, orientation preservation;
 //! - [`ppa`]: ridges and valleys against their naive twins, and against D8 drainage;
 //! - [`raster_io`]: every GeoTIFF variant, PNG16 and EXR round trips, bad files;
@@ -14,6 +16,7 @@
 
 mod analysis;
 mod dictionary;
+mod gradient;
 mod matching;
 mod ppa;
 mod projected;
