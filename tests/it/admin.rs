@@ -1279,6 +1279,7 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
     for (field, value) in [
         ("center", serde_json::json!([200.0, 0.0])),
         ("fill_m", serde_json::json!(1e9)),
+        ("sea_level_m", serde_json::json!(-2e4)),
         ("title", serde_json::json!("  ")),
     ] {
         let mut body = serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict]});

@@ -837,6 +837,7 @@ fn a_world_on_a_utm_base_lies_where_the_data_lies() {
         landscape: LandscapeConfig::tienshan(),
         center: None,
         sparsity: None,
+        water: Default::default(),
     })
     .unwrap();
     let [w, s, e, n] = world.bounds();
