@@ -14,7 +14,7 @@ use ndarray::Array2;
 use terrasynth_core::synth::Window;
 use terrasynth_tiles::{parse_request, render, World};
 
-use terrasynth_test_support::{mini_world, small_dictionary_with_vegetation, synthetic_terrain};
+use terrasynth_test_support::{small_dictionary_with_vegetation, synthetic_terrain};
 
 const N: usize = 120;
 /// The bowl: centre cell, flat-bottom radius and outer radius (cells), bottom elevation.
@@ -52,14 +52,42 @@ fn in_bowl(z: u8, px: i64, py: i64) -> bool {
     ((r - CENTRE.0).powi(2) + (c - CENTRE.1).powi(2)).sqrt() < RIM_R + 1.0
 }
 
+/// The mini world's place and settings (70°E 43°N, 15″, native zoom 8) with lakes on.
 fn lake_world() -> World {
-    mini_world(
+    use terrasynth_core::raster::{Crs, Georef, Grid};
+    let base = Grid::new(
         lake_base(),
-        small_dictionary_with_vegetation(2),
-        "d",
-        12,
-        128 << 20,
-    )
+        Georef {
+            crs: Crs::Epsg4326,
+            west: 70.0,
+            north: 43.0,
+            pixel_width: 1.0 / 240.0,
+            pixel_height: 1.0 / 240.0,
+        },
+    );
+    World::new(terrasynth_tiles::WorldParts {
+        name: "mini".into(),
+        title: "Mini".into(),
+        attribution: "synthetic".into(),
+        base,
+        z_base: Some(8),
+        max_zoom: 12,
+        fill_m: 0.0,
+        dictionaries: vec![terrasynth_tiles::DictionaryBand::every_zoom(
+            small_dictionary_with_vegetation(2),
+            "d",
+        )],
+        weights: Default::default(),
+        cache_bytes: 128 << 20,
+        landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
+        center: None,
+        sparsity: None,
+        water: terrasynth_core::landscape::WaterConfig {
+            lakes: true,
+            ..Default::default()
+        },
+    })
+    .unwrap()
 }
 
 /// The tiles of zoom `z` the world serves.

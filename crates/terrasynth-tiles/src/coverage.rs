@@ -154,16 +154,14 @@ mod tests {
             (hx as i64 - big.col0) as usize,
         );
         assert_eq!(cov[[hr, hc]], 0.0);
-        // A tile alone equals the same window of the assembled block.
-        let t = tile_window(big.col0.div_euclid(256) + 1, big.row0.div_euclid(256) + 1);
-        let alone = levels.window(&b, &extent, z, t).unwrap();
-        let inner = cov.slice(ndarray::s![
-            (t.row0 - big.row0) as usize..(t.row1() - big.row0) as usize,
-            (t.col0 - big.col0) as usize..(t.col1() - big.col0) as usize
-        ]);
-        if t.row1() <= big.row1() && t.col1() <= big.col1() {
-            assert_eq!(alone, inner);
-        }
+        // A tile alone (fresh cache) equals the same window of a block around it.
+        let t = tile_window((hx as i64).div_euclid(256), (hy as i64).div_euclid(256));
+        let block = Window::new(t.col0 - 40, t.row0 - 40, 336, 336);
+        let big = levels.window(&b, &extent, z, block).unwrap();
+        let alone = CoverageLevels::new(1 << 26)
+            .window(&b, &extent, z, t)
+            .unwrap();
+        assert_eq!(alone.view(), big.slice(ndarray::s![40..296, 40..296]));
     }
 
     #[test]

@@ -27,7 +27,8 @@ pub struct WaterConfig {
     /// API (`sea_level_m`), not in `[water]`; see [`default_sea_level`].
     #[serde(skip)]
     pub sea_level_m: Option<f32>,
-    /// Whether depressions become lakes (`false`: only the sea).
+    /// Whether depressions become lakes (default `false`: only the sea; worlds opt in, so the
+    /// landscape of existing worlds does not change).
     pub lakes: bool,
     /// Smallest filled area of a depression that becomes a lake, m².
     pub lake_min_area_m2: f64,
@@ -46,7 +47,7 @@ impl Default for WaterConfig {
     fn default() -> Self {
         WaterConfig {
             sea_level_m: None,
-            lakes: true,
+            lakes: false,
             lake_min_area_m2: 1e6,
             lake_min_depth_m: 20.0,
             shallow_colour: [120, 190, 220],
@@ -226,6 +227,7 @@ mod tests {
     fn cfg(sea: Option<f32>, area: f64, depth: f32) -> WaterConfig {
         WaterConfig {
             sea_level_m: sea,
+            lakes: true,
             lake_min_area_m2: area,
             lake_min_depth_m: depth,
             ..WaterConfig::default()
