@@ -177,7 +177,6 @@ pub fn mini_world_bands(
         landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
         center: None,
         sparsity: None,
-        water: terrasynth_core::landscape::WaterConfig::default(),
     })
 }
 
