@@ -214,7 +214,7 @@ impl Metrics {
         }
         self.render_counters(&mut out);
         let worlds: Vec<&World> = worlds.collect();
-        let counters: [Counter; 6] = [
+        let counters: [Counter; 7] = [
             (
                 "terrasynth_cache_hits_total",
                 "counter",
@@ -232,6 +232,12 @@ impl Metrics {
                 "counter",
                 "Level tiles produced by amplification.",
                 |w| w.stats().tiles_synthesized as f64,
+            ),
+            (
+                "terrasynth_windows_synthesized_total",
+                "counter",
+                "Parent windows amplified directly on cold chains (their tiles follow in the background).",
+                |w| w.stats().windows_synthesized as f64,
             ),
             (
                 "terrasynth_synthesis_seconds_total",

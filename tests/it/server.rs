@@ -880,3 +880,67 @@ fn a_world_on_a_utm_base_lies_where_the_data_lies() {
         "heights of the lidar"
     );
 }
+
+/// Waits until the world's background thread has computed the parent tiles of its cold chains.
+fn wait_for_prefill(world: &World) {
+    let start = std::time::Instant::now();
+    while world.stats().prefilling {
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(300),
+            "the background prefill never ended"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn a_cold_chain_of_windows_equals_the_chain_of_cached_tiles() {
+    // World A: a zoom-11 tile in an area nobody visited goes down its chain by windows (zooms 10
+    // and 9 amplified directly); world B: the same tile after 3×3 blocks of its ancestors were
+    // computed bottom-up, so every level assembles cached tiles.
+    let (z, x, y) = (11u8, 1434u32, 770u32);
+    let cold = small_world();
+    let tile_cold = cold.elevation_tile(z, x, y).unwrap();
+    assert_eq!(
+        cold.stats().windows_synthesized,
+        2,
+        "zooms 10 and 9 by windows"
+    );
+    wait_for_prefill(&cold);
+
+    let warm = small_world();
+    for zz in 9..z {
+        let (ax, ay) = (x >> (z - zz), y >> (z - zz));
+        for dy in 0..3 {
+            for dx in 0..3 {
+                warm.elevation_tile(zz, ax + dx - 1, ay + dy - 1).unwrap();
+            }
+        }
+    }
+    let tile_warm = warm.elevation_tile(z, x, y).unwrap();
+    assert_eq!(
+        warm.stats().windows_synthesized,
+        0,
+        "every parent was cached"
+    );
+    assert!(
+        tile_cold
+            .iter()
+            .zip(tile_warm.iter())
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "the window chain and the tile chain give different values"
+    );
+
+    // The background thread left the parents cached: the neighbour goes by tiles and amplifies
+    // no window.
+    let before = cold.stats();
+    let next = cold.elevation_tile(z, x + 1, y).unwrap();
+    let after = cold.stats();
+    assert_eq!(after.windows_synthesized, before.windows_synthesized);
+    assert!(after.tiles_synthesized > before.tiles_synthesized);
+    let next_warm = warm.elevation_tile(z, x + 1, y).unwrap();
+    assert!(next
+        .iter()
+        .zip(next_warm.iter())
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+}

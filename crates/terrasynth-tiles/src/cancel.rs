@@ -292,6 +292,11 @@ impl<K: Hash + Eq + Clone, V: Clone> Flights<K, V> {
         }
     }
 
+    /// Whether `key` is being computed right now.
+    pub fn is_running(&self, key: &K) -> bool {
+        lock(&self.map).contains_key(key)
+    }
+
     /// Number of computations in progress.
     pub fn in_flight(&self) -> usize {
         lock(&self.map).len()

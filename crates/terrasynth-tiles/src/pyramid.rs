@@ -152,6 +152,12 @@ impl<T: LevelTile> LevelCache<T> {
         r
     }
 
+    /// Whether tile `key` is cached or being computed right now (so that asking for it costs at
+    /// most a wait, not a computation).
+    pub fn is_known(&self, key: &TileKey) -> bool {
+        self.cache.contains_key(key) || self.flights.is_running(key)
+    }
+
     /// Bytes currently held.
     pub fn weighted_size(&self) -> u64 {
         self.cache.run_pending_tasks();

@@ -70,6 +70,11 @@ pub struct WorldStats {
     pub cache_misses: u64,
     /// Level tiles synthesized by amplification (zooms above `z_b`).
     pub tiles_synthesized: u64,
+    /// Parent windows amplified directly on cold chains (not cached; their tiles are computed in
+    /// the background).
+    pub windows_synthesized: u64,
+    /// Whether the background thread is still computing parent tiles of cold chains.
+    pub prefilling: bool,
     /// Seconds spent computing elevation level tiles.
     pub synthesis_seconds: f64,
     /// Level-tile computations (every layer) abandoned because nobody waited for them any more.
@@ -110,7 +115,7 @@ pub struct World {
     /// [`World::etag_seed`]: the hash states of tile ETags after the world's own part.
     etag_seeds: [sha2::Sha256; 2],
     landscape: Arc<LandscapeConfig>,
-    elevation: ElevationLevels,
+    elevation: Arc<ElevationLevels>,
     whole: WholeWorld,
     drainage: DrainageLevels,
     vegetation: VegetationLevels,
@@ -396,6 +401,8 @@ impl World {
             cache_hits: e.cache().stats().hits.load(Ordering::Relaxed),
             cache_misses: e.cache().stats().misses.load(Ordering::Relaxed),
             tiles_synthesized: e.tiles_synthesized.load(Ordering::Relaxed),
+            windows_synthesized: e.windows_synthesized.load(Ordering::Relaxed),
+            prefilling: e.prefilling(),
             synthesis_seconds: e.synthesis_micros.load(Ordering::Relaxed) as f64 / 1e6,
             cancelled: [
                 &e.cache().stats().cancelled,
