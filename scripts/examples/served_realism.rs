@@ -12,8 +12,10 @@
 //! - pixel-axis anisotropy ([`axis_anisotropy`]) of 2×2 mosaics (512²) at zooms 8 (native, for
 //!   reference), 10, 12, 13 and 14 (acceptance 3: ≤ 1.5).
 //!
-//! Usage: `cargo run --release --example served_realism -- [STORE_DIR]` (default
-//! `target/picture-store`; builds the default dictionary there on first use). Prints a markdown
+//! Usage: `cargo run --release --example served_realism -- [STORE_DIR [WORLD X10 Y10]]` (default
+//! `target/picture-store`, which builds the default dictionary there on first use; `WORLD`: any
+//! world of the configuration or created through the admin API in that store, its mosaics centred
+//! on the corner of zoom-10 tile `X10/Y10` instead of the default world's). Prints a markdown
 //! table.
 
 // A measurement tool: a failed unwrap aborts the run with its message.
@@ -32,12 +34,13 @@ const CHANNEL_M2: f32 = 1e6;
 /// The zoom-10 tile whose corner every mosaic is centred on.
 const CENTRE_Z10: (u32, u32) = (724, 378);
 
-/// The first tile of an `n × n` mosaic at zoom `z` centred on [`CENTRE_Z10`]'s corner.
-fn origin(z: u8, n: u32) -> (u32, u32) {
+/// The first tile of an `n × n` mosaic at zoom `z` centred on the corner of zoom-10 tile
+/// `centre`.
+fn origin(centre: (u32, u32), z: u8, n: u32) -> (u32, u32) {
     let (x, y) = if z >= 10 {
-        (CENTRE_Z10.0 << (z - 10), CENTRE_Z10.1 << (z - 10))
+        (centre.0 << (z - 10), centre.1 << (z - 10))
     } else {
-        (CENTRE_Z10.0 >> (10 - z), CENTRE_Z10.1 >> (10 - z))
+        (centre.0 >> (10 - z), centre.1 >> (10 - z))
     };
     (x - n / 2, y - n / 2)
 }
@@ -80,19 +83,27 @@ fn main() -> Result<(), Box<dyn Error>> {
     let store = args.first().map_or("target/picture-store", String::as_str);
     let mut config = terrasynth::config::load(None, Vec::new())?;
     config.server.store_dir = store.into();
-    let store = terrasynth_store::Store::open(&config.server.store_dir)?;
-    let worlds = terrasynth::server::load_worlds(&config, &store)?;
-    let world = worlds.get("tienshan").ok_or("no default world")?;
+    // The configured worlds and those created through the admin API, as the server loads them.
+    let state = terrasynth::server::startup::build_state(&config)?;
+    let (name, centre) = match &args[1..] {
+        [] => ("tienshan", CENTRE_Z10),
+        [name, x, y] => (name.as_str(), (x.parse()?, y.parse()?)),
+        _ => return Err("usage: served_realism [STORE_DIR [WORLD X10 Y10]]".into()),
+    };
+    let world = state
+        .world(name)
+        .map_err(|_| format!("no world {name} in the configuration or the store"))?;
+    let world = world.as_ref();
 
     println!("| zoom | mosaic (tiles from) | flood extent, % | channel runs on borders | continue across | anisotropy (2×2) |");
     println!("| ---: | --- | ---: | ---: | ---: | ---: |");
     for z in [8u8, 10, 12, 13, 14] {
-        let (ax, ay) = origin(z, 2);
+        let (ax, ay) = origin(centre, z, 2);
         let small = decoded_elevation(world, z, ax, ay, 2);
         let aniso = axis_anisotropy(&small);
         if matches!(z, 10 | 12 | 14) {
             let n = 8;
-            let (x0, y0) = origin(z, n);
+            let (x0, y0) = origin(centre, z, n);
             let elev = decoded_elevation(world, z, x0, y0, n);
             let area = served_drainage(world, z, x0, y0, n);
             let flood = flood_extent(&elev);
