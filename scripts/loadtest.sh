@@ -242,6 +242,22 @@ stats() {
         END { printf "%d %d %.1f %.1f\n", n, e, v[rank(0.50)], v[rank(0.99)] }'
 }
 
+# by_layer FILE: markdown rows "| layer | requests | first ms | p50 ms | p99 ms |" of a timings
+# file, one per layer (the path segment after the world), in order of first appearance; "first"
+# is the layer's first request of the replay (on a cold server, the one that pays for its levels).
+by_layer() {
+    local file="$1" layer ms n first
+    awk '{ split($4, p, "/"); print p[6] }' "$file" | awk '!seen[$0]++' | while read -r layer; do
+        ms=$(awk -v l="$layer" '{ split($4, p, "/"); if (p[6] == l) print $2 * 1000 }' "$file")
+        n=$(wc -l <<<"$ms")
+        first=$(head -1 <<<"$ms")
+        sort -g <<<"$ms" | awk -v n="$n" -v l="$layer" -v f="$first" '
+            function rank(p,   r) { r = int(p * n); if (r < p * n) r++; if (r < 1) r = 1; return r }
+            { v[NR] = $1 }
+            END { printf "| %s | %d | %.1f | %.1f | %.1f |\n", l, n, f, v[rank(0.50)], v[rank(0.99)] }'
+    done
+}
+
 # replay NAME URLFILE: requests the URLs in order over one connection, one at a time, and writes
 # "CODE SECONDS BYTES URL" lines to $WORK/NAME.timings; sets REPLAY_WALL (seconds, wall clock).
 REPLAY_WALL=0
@@ -475,6 +491,15 @@ fi
     echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
     for row in "${ROWS[@]}"; do
         echo "| ${row//|/ | } |"
+    done
+    for run in cold cold-z14-only; do
+        [[ -s "$WORK/$run.timings" ]] || continue
+        echo
+        echo "By layer, $run (first = the layer's first request of the replay):"
+        echo
+        echo "| layer | requests | first ms | p50 ms | p99 ms |"
+        echo "| --- | ---: | ---: | ---: | ---: |"
+        by_layer "$WORK/$run.timings"
     done
 } >"$REPORT"
 echo
