@@ -6,6 +6,11 @@
 //! created here. Look-ups run one at a time on the blocking pool, and a name found absent is
 //! not looked up again for [`RECHECK`], so that requests for unknown names cost at most one
 //! file read per name per second (the remembered names are bounded).
+//!
+//! The other direction is a periodic sync ([`spawn_store_sync`], every [`SYNC_INTERVAL`] while
+//! the admin API is on): a world deleted from the store by another replica stops being served
+//! here, one re-created under the same name by another replica replaces the old one, and worlds
+//! another replica created appear in `/worlds` without being asked for by name.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -23,11 +28,16 @@ pub const RECHECK: Duration = Duration::from_secs(1);
 /// Names remembered as absent at most (the memory is cleared when full).
 const MAX_REMEMBERED: usize = 4096;
 
+/// How often a replica compares the worlds it serves from the store with the store.
+pub const SYNC_INTERVAL: Duration = Duration::from_secs(2);
+
 /// The look-ups of unknown world names in the store.
 #[derive(Debug, Default)]
 pub struct Pickup {
     /// When each name was last found absent.
     absent: Mutex<HashMap<String, Instant>>,
+    /// The store id of every world served from the store, by name (the sync's memory).
+    from_store: Mutex<HashMap<String, String>>,
     /// One look-up at a time (a second request for the same new world waits and finds it).
     running: tokio::sync::Mutex<()>,
 }
@@ -36,6 +46,24 @@ impl Pickup {
     fn recently_absent(&self, name: &str) -> bool {
         let map = self.absent.lock().unwrap_or_else(|p| p.into_inner());
         map.get(name).is_some_and(|t| t.elapsed() < RECHECK)
+    }
+
+    /// Records that world `name` is served from the store's definition `id`.
+    pub fn served_from_store(&self, name: &str, id: &str) {
+        let mut map = self.from_store.lock().unwrap_or_else(|p| p.into_inner());
+        map.insert(name.to_string(), id.to_string());
+    }
+
+    fn served_ids(&self) -> HashMap<String, String> {
+        self.from_store
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+    }
+
+    fn forget(&self, name: &str) {
+        let mut map = self.from_store.lock().unwrap_or_else(|p| p.into_inner());
+        map.remove(name);
     }
 
     fn mark_absent(&self, name: &str) {
@@ -75,7 +103,7 @@ impl AppState {
         if self.pickup.recently_absent(name) {
             return Err(unknown(name));
         }
-        let (live, owned) = (self.live.clone(), name.to_string());
+        let (live, owned, pickup) = (self.live.clone(), name.to_string(), self.pickup.clone());
         let found = blocking(move || {
             let catalogue = &admin.catalogue;
             let Some((id, def)) = catalogue.stored_world(&owned)? else {
@@ -87,6 +115,7 @@ impl AppState {
                 .and_then(|r| world_from(r, admin.cache_bytes).map_err(ServerError::from))?;
             let world = Arc::new(world);
             live.insert(world.clone());
+            pickup.served_from_store(&owned, &id);
             tracing::info!(world = %owned, id = %id, "world: picked up from the store");
             Ok(Some(world))
         })
@@ -102,4 +131,83 @@ impl AppState {
             }
         }
     }
+}
+
+/// Starts the periodic sync of the worlds served from the store with the store (see the module
+/// documentation); nothing when the admin API is off (no store catalogue). Runs on the blocking
+/// pool, one pass at a time, for the life of the process.
+pub fn spawn_store_sync(state: &AppState) {
+    if state.admin.is_none() {
+        return;
+    }
+    let state = state.clone();
+    tokio::spawn(async move {
+        let mut tick = tokio::time::interval(SYNC_INTERVAL);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tick.tick().await;
+            let s = state.clone();
+            match blocking(move || sync_once(&s)).await {
+                Ok(added) if !added.is_empty() => prepare_landscapes(added),
+                Ok(_) => {}
+                Err(e) => tracing::warn!(error = %e, "store sync failed; retrying"),
+            }
+        }
+    });
+}
+
+/// One pass of the sync: drops worlds whose stored definition is gone, reloads those whose
+/// definition changed, loads stored worlds not served yet. Returns the worlds it loaded.
+fn sync_once(state: &AppState) -> Result<Vec<Arc<World>>, ServerError> {
+    let admin = state.admin()?;
+    let catalogue = &admin.catalogue;
+    let stored: HashMap<String, String> = catalogue
+        .stored_worlds()?
+        .into_iter()
+        .map(|(id, def)| (def.name, id))
+        .collect();
+    let known = state.pickup.served_ids();
+    for (name, id) in &known {
+        if stored.get(name) != Some(id) {
+            state.pickup.forget(name);
+            if !stored.contains_key(name) && state.live.remove(name) {
+                tracing::info!(world = %name, "world: deleted from the store; no longer served");
+            }
+        }
+    }
+    let mut added = Vec::new();
+    for (name, id) in &stored {
+        if known.get(name) == Some(id) {
+            continue;
+        }
+        // `stored_world` leaves out names a configured world shadows.
+        let Some((id_now, def)) = catalogue.stored_world(name)? else {
+            continue;
+        };
+        if !known.contains_key(name) && state.live.get(name).is_some() {
+            // Served already (created through this process's admin API, or loaded at start
+            // before the sync knew it): adopt it.
+            state.pickup.served_from_store(name, &id_now);
+            continue;
+        }
+        let built = catalogue
+            .resolve(&def)
+            .map_err(ServerError::from)
+            .and_then(|r| world_from(r, admin.cache_bytes).map_err(ServerError::from));
+        match built {
+            Ok(world) => {
+                let world = Arc::new(world);
+                state.live.insert(world.clone());
+                state.pickup.served_from_store(name, &id_now);
+                tracing::info!(world = %name, id = %id_now, "world: loaded from the store by the sync");
+                added.push(world);
+            }
+            Err(e) => {
+                // Remembered, so that a broken definition is not rebuilt every pass.
+                state.pickup.served_from_store(name, &id_now);
+                tracing::warn!(world = %name, error = %e, "stored world unusable; skipped");
+            }
+        }
+    }
+    Ok(added)
 }

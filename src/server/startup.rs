@@ -157,6 +157,7 @@ pub async fn serve(config: Config) -> Result<(), StartupError> {
         .await
         .map_err(|e| StartupError::Runtime(e.to_string()))??;
     prepare_landscapes(state.live.snapshot().values().cloned().collect());
+    super::pickup::spawn_store_sync(&state);
     if state.admin.as_ref().is_some_and(|a| a.enabled()) {
         tracing::info!("admin API enabled under /admin");
     } else {

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use ndarray::{s, Array2};
 use terrasynth_core::raster::{read_geotiff_file, Grid, ReadLimits};
 
-use terrasynth_test_support::process::{get, json, post};
+use terrasynth_test_support::process::{delete, get, json, post};
 use terrasynth_test_support::tile_of;
 
 use crate::support::{start, Server};
@@ -401,5 +401,53 @@ fn a_world_created_on_one_replica_is_served_by_another_sharing_the_store() {
     // Names the store does not hold stay 404, however often they are asked.
     for _ in 0..3 {
         assert_eq!(get(&b, "/worlds/never-made", None).0, 404);
+    }
+
+    // A second world created on a appears in b's list without being asked for by name.
+    let (st, body) = post(
+        &a,
+        "/admin/worlds",
+        TOKEN,
+        "application/json",
+        serde_json::json!({"name": "listed", "base": base, "dictionaries": [dict], "max_zoom": 11})
+            .to_string()
+            .as_bytes(),
+    );
+    assert_eq!(st, 201, "{}", String::from_utf8_lossy(&body));
+    let listed = |server: &Server, name: &str| {
+        let (st, body) = get(server, "/worlds", None);
+        assert_eq!(st, 200);
+        json(&body)
+            .as_array()
+            .is_some_and(|ws| ws.iter().any(|w| w["name"] == name))
+    };
+    wait_for(
+        || listed(&b, "listed"),
+        "replica b lists the world a created",
+    );
+
+    // Deleted on a: b stops serving it, by name, in its list and in its tiles.
+    let (x, y) = tile_of(0.5 * (w + e), 0.5 * (s_ + n), native);
+    let tile = format!("/tiles/shared/elevation/{native}/{x}/{y}.png");
+    assert_eq!(get(&b, &tile, None).0, 200);
+    assert_eq!(delete(&a, "/admin/worlds/shared", TOKEN).0, 204);
+    wait_for(
+        || get(&b, "/worlds/shared", None).0 == 404,
+        "replica b stops serving the world a deleted",
+    );
+    assert_eq!(get(&b, &tile, None).0, 404);
+    assert!(!listed(&b, "shared"));
+    assert!(listed(&b, "listed"));
+}
+
+/// Polls `done` every 100 ms; fails with `what` when it is still false after 5 s.
+fn wait_for(mut done: impl FnMut() -> bool, what: &str) {
+    let start = Instant::now();
+    while !done() {
+        assert!(
+            start.elapsed() < Duration::from_secs(5),
+            "{what}: not within 5 s"
+        );
+        std::thread::sleep(Duration::from_millis(100));
     }
 }

@@ -121,6 +121,16 @@ pub fn post(
     finish(r.send(body))
 }
 
+/// `DELETE path` with a bearer token.
+pub fn delete(server: &Server, path: &str, token: &str) -> (u16, Vec<u8>) {
+    let r = ureq::delete(&format!("{}{path}", server.base))
+        .config()
+        .http_status_as_error(false)
+        .build()
+        .header("Authorization", &format!("Bearer {token}"));
+    finish(r.call())
+}
+
 /// The JSON of a body.
 pub fn json(body: &[u8]) -> serde_json::Value {
     serde_json::from_slice(body).unwrap_or(serde_json::Value::Null)
