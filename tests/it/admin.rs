@@ -1109,17 +1109,21 @@ async fn api_dictionaries_and_worlds_use_their_own_species_and_materials() {
             body
         }
     };
-    // Splat: every pixel of the lava world is wholly lava (channel R = 255, the others 0).
+    // Splat: every pixel of the lava world is wholly lava (channel R = 255, the others 0), or
+    // nothing outside the base's coverage.
     let (_, _, splat) = decode_rgba(&tile("lava", "splat", "png").await);
-    assert!(splat.chunks(4).all(|p| p == [255, 0, 0, 0]));
+    assert!(splat
+        .chunks(4)
+        .all(|p| p == [255, 0, 0, 0] || p == [0, 0, 0, 0]));
+    assert!(splat.chunks(4).any(|p| p == [255, 0, 0, 0]));
     let (_, _, plain_splat) = decode_rgba(&tile("plain", "splat", "png").await);
     assert!(plain_splat.chunks(4).any(|p| p != [255, 0, 0, 0]));
     // Colour: lava's colour (200, 0, 0) shaded; green and blue stay 0. The default materials
-    // (snow, rock, meadow...) give other colours.
+    // (snow, rock, meadow...) give other colours. Transparent outside the base's coverage.
     let (_, _, colour) = decode_rgba(&tile("lava", "color", "png").await);
     assert!(colour
         .chunks(4)
-        .all(|p| p[1] == 0 && p[2] == 0 && p[3] == 255));
+        .all(|p| p[1] == 0 && p[2] == 0 && (p[3] == 255 || p == [0, 0, 0, 0])));
     assert!(colour.chunks(4).any(|p| p[0] > 100));
     let (_, _, plain_colour) = decode_rgba(&tile("plain", "color", "png").await);
     assert!(plain_colour.chunks(4).any(|p| p[1] > 0));
@@ -1279,6 +1283,7 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
     for (field, value) in [
         ("center", serde_json::json!([200.0, 0.0])),
         ("fill_m", serde_json::json!(1e9)),
+        ("sea_level_m", serde_json::json!(-2e4)),
         ("title", serde_json::json!("  ")),
     ] {
         let mut body = serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict]});

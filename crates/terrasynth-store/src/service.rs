@@ -562,6 +562,7 @@ impl Catalogue {
                 attribution: None,
                 fill_m: None,
                 center: None,
+                sea_level_m: None,
                 scatter: None,
             },
             &self.defaults,

@@ -51,6 +51,9 @@ pub struct WorldDefinition {
     /// Where map clients open, `[lon, lat]`; absent: over the base's highest-relief region.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub center: Option<[f64; 2]>,
+    /// Sea level, metres; absent: 0 for a base with cells below 0, no sea otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sea_level_m: Option<f32>,
     /// Scattering rules of the instance tiles, each as a world file's `[[landscape.scatter]]`;
     /// absent: the default world's (less the rules naming species or materials it lacks).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -117,6 +120,10 @@ pub struct WorldRequest {
     /// highest-relief region).
     #[serde(default)]
     pub center: Option<[f64; 2]>,
+    /// Sea level, metres (default: 0 for a base with cells below 0, no sea otherwise; finite,
+    /// within ±12,000 m).
+    #[serde(default)]
+    pub sea_level_m: Option<f32>,
     /// Scattering rules of the instance tiles, each as a world file's `[[landscape.scatter]]`
     /// (`{"kind", "method": "jittered_grid" | "collision" | "survival", "species", "materials",
     /// "name", "spacing_m", "min_distance_m", "jitter", "height_m", "radius_m", "age_classes",
@@ -266,6 +273,7 @@ impl WorldDefinition {
             attribution: r.attribution,
             fill_m: r.fill_m.unwrap_or(0.0),
             center: r.center,
+            sea_level_m: r.sea_level_m,
             scatter: r.scatter,
         };
         if def
@@ -289,6 +297,14 @@ impl WorldDefinition {
         if !def.fill_m.is_finite() || def.fill_m.abs() > 12_000.0 {
             return Err(ServiceError::Invalid(
                 "fill_m must be a finite elevation within ±12,000 m".into(),
+            ));
+        }
+        if def
+            .sea_level_m
+            .is_some_and(|s| !s.is_finite() || s.abs() > 12_000.0)
+        {
+            return Err(ServiceError::Invalid(
+                "sea_level_m must be a finite elevation within ±12,000 m".into(),
             ));
         }
         if def.center.is_some_and(|c| !is_map_point(c)) {

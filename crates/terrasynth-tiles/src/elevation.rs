@@ -7,17 +7,26 @@
 //! [`Amplifier::parent_window_for`] names, assembled from cached parent tiles; since the amplifier
 //! is window-invariant, a tile computed alone equals the same window of any larger region. A tile
 //! of zoom `z < z_b` is the 2×2 box average of its four children, so zooming is consistent.
+//!
+//! Amplified pixels outside the base's coverage are the fill, exactly. Cells under water keep
+//! their bed elevation; where the bed is exactly flat under water (a
+//! flat lake bed), amplified levels add no detail ([`calm_flat_water`]). The sea and lakes of the
+//! native zoom are computed here once ([`ElevationLevels::base_water`]) since they depend only on
+//! the native-zoom elevation and coverage.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use ndarray::Array2;
 
+use terrasynth_core::landscape::{water, WaterConfig};
 use terrasynth_core::raster::{box2, Grid};
 use terrasynth_core::synth::{Amplifier, Field, Window};
 
+use crate::cancel::uncancellable;
 use crate::chain::Chain;
+use crate::coverage::CoverageLevels;
 use crate::error::TileError;
 use crate::extent::Extent;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
@@ -30,10 +39,28 @@ pub struct ElevationLevels {
     extent: Extent,
     amplifiers: Chain<Amplifier>,
     cache: LevelCache<Array2<f32>>,
+    coverage: CoverageLevels,
+    water: WaterConfig,
+    base_water: OnceLock<Result<Option<Arc<BaseWater>>, TileError>>,
     /// Level tiles synthesized by amplification (zooms above `z_b`).
     pub tiles_synthesized: AtomicU64,
     /// Time spent computing level tiles, microseconds.
     pub synthesis_micros: AtomicU64,
+}
+
+/// Largest whole-world window of the native zoom, pixels.
+pub const MAX_WORLD_PIXELS: usize = 1 << 26;
+
+/// The sea and lakes of the native zoom's whole-world window
+/// ([`terrasynth_core::landscape::water`] on the native-zoom elevation and coverage).
+#[derive(Debug)]
+pub struct BaseWater {
+    /// The window of the native zoom's plane they cover.
+    pub window: Window,
+    /// Water surface level, metres; NaN where dry.
+    pub level: Array2<f32>,
+    /// 1 on sea cells, 0 elsewhere.
+    pub sea: Array2<f32>,
 }
 
 impl std::fmt::Debug for ElevationLevels {
@@ -46,20 +73,25 @@ impl std::fmt::Debug for ElevationLevels {
 
 impl ElevationLevels {
     /// Levels over `base` (outside it: `fill_m`), each zoom amplified with its band's amplifier
-    /// of `amplifiers`, cached in at most `cache_bytes` bytes.
+    /// of `amplifiers`, cached in at most `cache_bytes` bytes (an eighth of them for the
+    /// coverage tiles), with the sea and lakes of `water`.
     pub fn new(
         base: Grid,
         fill_m: f32,
         extent: Extent,
         amplifiers: Chain<Amplifier>,
         cache_bytes: u64,
+        water: WaterConfig,
     ) -> Self {
         ElevationLevels {
             base,
             fill_m,
             extent,
             amplifiers,
-            cache: LevelCache::new(cache_bytes),
+            water,
+            base_water: OnceLock::new(),
+            cache: LevelCache::new(cache_bytes - cache_bytes / 8),
+            coverage: CoverageLevels::new(cache_bytes / 8),
             tiles_synthesized: AtomicU64::new(0),
             synthesis_micros: AtomicU64::new(0),
         }
@@ -83,6 +115,52 @@ impl ElevationLevels {
     /// The cache of level tiles.
     pub fn cache(&self) -> &LevelCache<Array2<f32>> {
         &self.cache
+    }
+
+    /// The cache of coverage tiles.
+    pub fn coverage_cache(&self) -> &LevelCache<Array2<f32>> {
+        self.coverage.cache()
+    }
+
+    /// The coverage tile `(z, tx, ty)`: the fraction of each pixel the base's valid data covers
+    /// ([`crate::coverage`]).
+    pub fn coverage_tile(&self, z: u8, tx: i64, ty: i64) -> Result<Arc<Array2<f32>>, TileError> {
+        self.coverage.tile(&self.base, &self.extent, z, tx, ty)
+    }
+
+    /// Coverage over window `w` of zoom `z`.
+    pub fn coverage_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
+        self.coverage.window(&self.base, &self.extent, z, w)
+    }
+
+    /// The sea and lakes of the native zoom (`None`: nothing is wet), computed once on first use
+    /// (never cancelled: the result is kept).
+    pub fn base_water(&self) -> Result<Option<Arc<BaseWater>>, TileError> {
+        self.base_water
+            .get_or_init(|| uncancellable(|| self.compute_base_water()))
+            .clone()
+    }
+
+    fn compute_base_water(&self) -> Result<Option<Arc<BaseWater>>, TileError> {
+        let z = self.extent.z_base;
+        let window = self.extent.world_window(z);
+        if window.len() > MAX_WORLD_PIXELS {
+            return Err(TileError::WorldTooLarge(window));
+        }
+        let heights = self.window(z, window)?;
+        let covered = self
+            .coverage_window(z, window)?
+            .mapv(|c| !crate::coverage::uncovered(c));
+        let cells = self.extent.cell_sizes(z, window.row0, window.rows);
+        let wet = water(&heights, &covered, &cells, &self.water);
+        if wet.level.iter().all(|v| v.is_nan()) {
+            return Ok(None);
+        }
+        Ok(Some(Arc::new(BaseWater {
+            window,
+            level: wet.level,
+            sea: wet.sea.mapv(f32::from),
+        })))
     }
 
     /// The level tile `(z, tx, ty)`, computed once. Tile indices may lie outside `[0, 2^z)`.
@@ -134,6 +212,57 @@ impl ElevationLevels {
         let parent = Field::elevation_only(need, self.window(z - 1, need)?);
         let field = amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
         self.tiles_synthesized.fetch_add(1, Ordering::Relaxed);
-        Ok(field.elevation)
+        let mut out = field.elevation;
+        // Outside the coverage the elevation is the fill, exactly (no detail over no data).
+        let coverage = self.coverage_tile(z, tx, ty)?;
+        ndarray::Zip::from(&mut out)
+            .and(&*coverage)
+            .for_each(|v, &c| {
+                if crate::coverage::uncovered(c) {
+                    *v = self.fill_m;
+                }
+            });
+        if let Some(bw) = self.base_water()? {
+            calm_flat_water(&mut out, w, &parent.elevation, need, &bw, z - zb);
+        }
+        Ok(out)
+    }
+}
+
+/// No detail on flat beds under water: a pixel of an amplified level whose native-zoom ancestor
+/// is wet and whose parent pixel and its eight neighbours are exactly equal takes the parent's
+/// value (so a flat lake bed stays flat, bit for bit, at every zoom). A function of global
+/// coordinates only: window-invariant.
+fn calm_flat_water(
+    out: &mut Array2<f32>,
+    w: Window,
+    parent: &Array2<f32>,
+    pw: Window,
+    bw: &BaseWater,
+    levels_above_base: u8,
+) {
+    let shift = u32::from(levels_above_base);
+    let at = |a: &Array2<f32>, win: Window, gr: i64, gc: i64| -> Option<f32> {
+        let (r, c) = (gr - win.row0, gc - win.col0);
+        if r < 0 || c < 0 {
+            return None;
+        }
+        a.get((r as usize, c as usize)).copied()
+    };
+    for ((r, c), v) in out.indexed_iter_mut() {
+        let (gr, gc) = (w.row0 + r as i64, w.col0 + c as i64);
+        let wet = at(&bw.level, bw.window, gr >> shift, gc >> shift).is_some_and(|l| !l.is_nan());
+        if !wet {
+            continue;
+        }
+        let (pr, pc) = (gr >> 1, gc >> 1);
+        let Some(centre) = at(parent, pw, pr, pc) else {
+            continue;
+        };
+        let flat =
+            (-1..=1).all(|dr| (-1..=1).all(|dc| at(parent, pw, pr + dr, pc + dc) == Some(centre)));
+        if flat {
+            *v = centre;
+        }
     }
 }
