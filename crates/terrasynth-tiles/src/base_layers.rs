@@ -27,10 +27,12 @@ pub struct BaseLayers {
     pub vegetation: Vec<Array2<f32>>,
 }
 
-/// Bytes the whole-world layers over `window` hold: the upstream area, one grid per species and
-/// the water's two grids ([`ElevationLevels::base_water`]), f32 each.
-pub fn base_layer_bytes(window: Window, species: usize) -> u64 {
-    (window.len() as u64).saturating_mul(4 * (3 + species as u64))
+/// Bytes the whole-world layers over `window` hold: the upstream area, one grid per species and,
+/// for a world that may have water, the water's two grids ([`ElevationLevels::base_water`]; a
+/// world without sea level or lakes never computes them), f32 each.
+pub fn base_layer_bytes(window: Window, species: usize, water: bool) -> u64 {
+    let grids = 1 + species as u64 + if water { 2 } else { 0 };
+    (window.len() as u64).saturating_mul(4 * grids)
 }
 
 /// Copies the part of `a` (held over `aw`) that lies in `w` into a `w`-shaped grid, `fill`

@@ -4,12 +4,13 @@
 //! outside the base or in its nodata holes.
 //!
 //! - **Native and amplified zooms** (`z ≥ z_b`): 1 where the pixel's centre takes its value from
-//!   valid base cells ([`mercator_window_from_grid`]'s mask, sampled at that zoom directly, so the
+//!   valid base cells ([`crate::resample::mercator_window_from_grid`]'s mask, sampled at that zoom directly, so the
 //!   border is as sharp as the zoom's pixels), else 0.
 //! - **Overviews** (`z < z_b`): the 2×2 box average of the children (a fraction on the border).
 //!
 //! Each pixel is a function of its global coordinates only: the layer is seamless and
-//! window-invariant like every other.
+//! window-invariant like every other. Only the overview tiles are cached: a tile of `z ≥ z_b` is
+//! a per-pixel lookup of the base's validity (read once), cheaper to recompute than to hold.
 
 use std::sync::Arc;
 
@@ -21,28 +22,33 @@ use terrasynth_core::synth::Window;
 use crate::error::TileError;
 use crate::extent::Extent;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
-use crate::resample::mercator_window_from_grid;
+use crate::resample::{mercator_mask_from_grid, source_validity};
 
 /// The coverage levels of a world.
 #[derive(Debug)]
 pub struct CoverageLevels {
+    /// Overview tiles (`z < z_b`) only: the tiles of the native and amplified zooms are cheap
+    /// per-pixel lookups, computed on each use so that they take no cache memory.
     cache: LevelCache<Array2<f32>>,
+    /// The base's per-cell validity, read once (`None`: every cell is valid).
+    valid: Option<Array2<bool>>,
 }
 
 impl CoverageLevels {
-    /// Coverage levels cached in at most `cache_bytes` bytes.
-    pub fn new(cache_bytes: u64) -> Self {
+    /// Coverage levels of `base`, the overview tiles cached in at most `cache_bytes` bytes.
+    pub fn new(base: &Grid, cache_bytes: u64) -> Self {
         CoverageLevels {
             cache: LevelCache::new(cache_bytes),
+            valid: source_validity(base),
         }
     }
 
-    /// The cache of level tiles.
+    /// The cache of overview tiles.
     pub fn cache(&self) -> &LevelCache<Array2<f32>> {
         &self.cache
     }
 
-    /// The coverage tile `(z, tx, ty)` of `base` placed by `extent`, computed once.
+    /// The coverage tile `(z, tx, ty)` of `base` placed by `extent`.
     pub fn tile(
         &self,
         base: &Grid,
@@ -51,8 +57,12 @@ impl CoverageLevels {
         tx: i64,
         ty: i64,
     ) -> Result<Arc<Array2<f32>>, TileError> {
-        self.cache
-            .get_or_compute((z, tx, ty), || self.compute(base, extent, z, tx, ty))
+        if z < extent.z_base && !extent.tile_outside(z, tx, ty) {
+            self.cache
+                .get_or_compute((z, tx, ty), || self.compute(base, extent, z, tx, ty))
+        } else {
+            self.compute(base, extent, z, tx, ty).map(Arc::new)
+        }
     }
 
     /// Coverage over window `w` of zoom `z`, assembled from tiles.
@@ -86,7 +96,8 @@ impl CoverageLevels {
                 self.tile(base, extent, z + 1, cx, cy).map(Some)
             });
         }
-        let (_, mask) = mercator_window_from_grid(base, z, w.col0, w.row0, w.cols, w.rows, 0.0);
+        let mask =
+            mercator_mask_from_grid(base, self.valid.as_ref(), z, w.col0, w.row0, w.cols, w.rows);
         Ok(mask.mapv(|m| if m { 1.0 } else { 0.0 }))
     }
 }
@@ -109,6 +120,7 @@ pub fn mask_in_place(values: &mut Array2<f32>, coverage: &Array2<f32>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::resample::mercator_window_from_grid;
     use terrasynth_core::raster::Georef;
 
     /// A 1°×1° base at (10°E, 40°N) of 64×64 cells with a 16×16 nodata hole in its middle.
@@ -135,7 +147,7 @@ mod tests {
     fn coverage_is_one_inside_zero_outside_and_in_holes() {
         let b = base();
         let extent = Extent::of_base(&b, None, 14).unwrap();
-        let levels = CoverageLevels::new(1 << 26);
+        let levels = CoverageLevels::new(&b, 1 << 26);
         let z = extent.z_base + 1;
         let w = extent.world_window(z);
         let big = Window::new(w.col0 - 40, w.row0 - 40, w.cols + 80, w.rows + 80);
@@ -158,7 +170,7 @@ mod tests {
         let t = tile_window((hx as i64).div_euclid(256), (hy as i64).div_euclid(256));
         let block = Window::new(t.col0 - 40, t.row0 - 40, 336, 336);
         let big = levels.window(&b, &extent, z, block).unwrap();
-        let alone = CoverageLevels::new(1 << 26)
+        let alone = CoverageLevels::new(&b, 1 << 26)
             .window(&b, &extent, z, t)
             .unwrap();
         assert_eq!(alone.view(), big.slice(ndarray::s![40..296, 40..296]));
@@ -168,7 +180,7 @@ mod tests {
     fn overviews_average_the_children() {
         let b = base();
         let extent = Extent::of_base(&b, None, 14).unwrap();
-        let levels = CoverageLevels::new(1 << 26);
+        let levels = CoverageLevels::new(&b, 1 << 26);
         let z = extent.z_base - 1;
         let w = extent.world_window(z);
         let cov = levels.window(&b, &extent, z, w).unwrap();

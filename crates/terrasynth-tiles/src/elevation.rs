@@ -73,16 +73,18 @@ impl std::fmt::Debug for ElevationLevels {
 
 impl ElevationLevels {
     /// Levels over `base` (outside it: `fill_m`), each zoom amplified with its band's amplifier
-    /// of `amplifiers`, cached in at most `cache_bytes` bytes (an eighth of them for the
-    /// coverage tiles), with the sea and lakes of `water`.
+    /// of `amplifiers`, cached in at most `cache_bytes` bytes (the coverage overviews in at most
+    /// `coverage_bytes` more), with the sea and lakes of `water`.
     pub fn new(
         base: Grid,
         fill_m: f32,
         extent: Extent,
         amplifiers: Chain<Amplifier>,
         cache_bytes: u64,
+        coverage_bytes: u64,
         water: WaterConfig,
     ) -> Self {
+        let coverage = CoverageLevels::new(&base, coverage_bytes);
         ElevationLevels {
             base,
             fill_m,
@@ -90,8 +92,8 @@ impl ElevationLevels {
             amplifiers,
             water,
             base_water: OnceLock::new(),
-            cache: LevelCache::new(cache_bytes - cache_bytes / 8),
-            coverage: CoverageLevels::new(cache_bytes / 8),
+            coverage,
+            cache: LevelCache::new(cache_bytes),
             tiles_synthesized: AtomicU64::new(0),
             synthesis_micros: AtomicU64::new(0),
         }
@@ -117,7 +119,7 @@ impl ElevationLevels {
         &self.cache
     }
 
-    /// The cache of coverage tiles.
+    /// The cache of coverage overview tiles.
     pub fn coverage_cache(&self) -> &LevelCache<Array2<f32>> {
         self.coverage.cache()
     }
@@ -142,6 +144,10 @@ impl ElevationLevels {
     }
 
     fn compute_base_water(&self) -> Result<Option<Arc<BaseWater>>, TileError> {
+        if !self.water.may_have_water() {
+            // No sea level and no lakes: dry everywhere, without looking at the whole world.
+            return Ok(None);
+        }
         let z = self.extent.z_base;
         let window = self.extent.world_window(z);
         if window.len() > MAX_WORLD_PIXELS {

@@ -38,6 +38,8 @@ const PLANES: usize = 3;
 #[derive(Debug)]
 pub struct WaterLevels {
     cache: LevelCache<Vec<Array2<f32>>>,
+    /// The one tile of a world without water (every tile is dry): never cached per key.
+    dry: Arc<Vec<Array2<f32>>>,
 }
 
 fn max4(v: [f32; 4]) -> f32 {
@@ -60,6 +62,7 @@ impl WaterLevels {
     pub fn new(cache_bytes: u64) -> Self {
         WaterLevels {
             cache: LevelCache::new(cache_bytes),
+            dry: Arc::new(dry(tile_window(0, 0))),
         }
     }
 
@@ -76,6 +79,10 @@ impl WaterLevels {
         tx: i64,
         ty: i64,
     ) -> Result<Arc<Vec<Array2<f32>>>, TileError> {
+        if elevation.base_water()?.is_none() || elevation.extent().tile_outside(z, tx, ty) {
+            // Dry everywhere (or outside the world): the shared dry tile, no cache entry.
+            return Ok(self.dry.clone());
+        }
         self.cache
             .get_or_compute((z, tx, ty), || self.compute(elevation, z, tx, ty))
     }

@@ -1,8 +1,10 @@
 //! A world ready to serve: its [`Extent`] on the tile planes and the pyramids of its layers —
 //! elevation (with the base's coverage), drainage, vegetation and water, plus splat weights and
 //! colour inputs computed per tile — built from its [`WorldParts`]. The world's cache budget is
-//! shared by its whole-world layers (first) and its level caches: three eighths for elevation (an
-//! eighth of those for coverage), an eighth for water, a quarter each for vegetation and drainage.
+//! shared by its whole-world layers (first) and its level caches: half for elevation, a
+//! sixty-fourth for the coverage overviews, a quarter each for vegetation and drainage (less an
+//! eighth of the budget between them for water, in worlds that may have water, and drainage
+//! less the coverage's share).
 //! The ridges and valleys of the base (PPA) are computed once, on first use, outside that
 //! budget.
 
@@ -235,14 +237,19 @@ impl World {
         let fingerprint = fingerprint(&parts, extent.z_base);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
+        let wet = parts.water.may_have_water();
         let base_bytes = base_layer_bytes(
             extent.world_window(extent.z_base),
             parts.landscape.species.len(),
+            wet,
         );
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
             .max(parts.cache_bytes / 4);
+        // Water tiles hold three planes: an eighth of the budget, for worlds that may have water
+        // (a dry world's water tiles are one shared dry tile, never cached).
+        let water_bytes = if wet { budget / 8 } else { 0 };
         let center = parts
             .center
             .or_else(|| relief_center(&parts.base))
@@ -271,14 +278,18 @@ impl World {
                 parts.fill_m,
                 extent,
                 amplifiers,
-                budget / 2 - budget / 8,
+                budget / 2,
+                budget / 64,
                 parts.water.clone(),
             ),
             whole: WholeWorld::new(landscape.clone()),
-            drainage: DrainageLevels::new(budget / 4),
-            vegetation: VegetationLevels::new(landscape.clone(), layer_amplifiers, budget / 4),
-            // Water tiles hold three planes: an eighth of the budget.
-            water: WaterLevels::new(budget / 8),
+            drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
+            vegetation: VegetationLevels::new(
+                landscape.clone(),
+                layer_amplifiers,
+                budget / 4 - water_bytes / 2,
+            ),
+            water: WaterLevels::new(water_bytes),
             water_config: parts.water,
             landscape,
             features: Mutex::new(None),
@@ -490,9 +501,13 @@ impl World {
     /// needs them; a request arriving meanwhile waits for the same computation. Returns the bytes
     /// they hold.
     pub fn prepare_landscape(&self) -> Result<u64, TileError> {
-        self.whole
-            .get(&self.elevation)
-            .map(|b| base_layer_bytes(b.window, b.vegetation.len()))
+        self.whole.get(&self.elevation).map(|b| {
+            base_layer_bytes(
+                b.window,
+                b.vegetation.len(),
+                self.water_config.may_have_water(),
+            )
+        })
     }
 
     /// The drainage tile `(z, x, y)`: upstream area in m² (after [`World::check_tile`]).

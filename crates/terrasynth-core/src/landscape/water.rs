@@ -58,6 +58,12 @@ impl Default for WaterConfig {
 }
 
 impl WaterConfig {
+    /// Whether a world with these settings can have any water at all: a sea level or lakes.
+    /// A world without either is dry everywhere, so it needs no water grids or tiles.
+    pub fn may_have_water(&self) -> bool {
+        self.sea_level_m.is_some() || self.lakes
+    }
+
     /// Checks ranges.
     pub fn validate(&self) -> Result<(), LandscapeError> {
         let bad = |m: &str| Err(LandscapeError::Invalid(m.into()));
