@@ -272,7 +272,7 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         landscape: resolved.landscape,
         water: WaterConfig {
             sea_level_m: def.sea_level_m,
-            ..WaterConfig::default()
+            ..def.water.clone().unwrap_or_default()
         },
         name: def.name,
     })

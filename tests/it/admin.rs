@@ -1280,18 +1280,47 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
     assert_eq!(w["center"][0], 74.05);
     assert_eq!(w["center"][1], 42.45);
     assert_eq!(w["title"], "peak2");
-    for (field, value) in [
-        ("center", serde_json::json!([200.0, 0.0])),
-        ("fill_m", serde_json::json!(1e9)),
-        ("sea_level_m", serde_json::json!(-2e4)),
-        ("title", serde_json::json!("  ")),
+    let before = store_files(dir.path());
+    for (field, value, named) in [
+        ("center", serde_json::json!([200.0, 0.0]), "center"),
+        ("fill_m", serde_json::json!(1e9), "fill_m"),
+        ("sea_level_m", serde_json::json!(-2e4), "sea_level_m"),
+        ("title", serde_json::json!("  "), "title"),
+        (
+            "water",
+            serde_json::json!({"lakes": true, "lake_min_area_m2": -1.0}),
+            "water.lake_min_area_m2",
+        ),
+        (
+            "water",
+            serde_json::json!({"lakes": true, "lake_min_depth_m": 0.0}),
+            "water.lake_min_depth_m",
+        ),
+        ("water", serde_json::json!({"deep_m": -5.0}), "water.deep_m"),
+        ("water", serde_json::json!({"lake": true}), "lake"),
+        (
+            "water",
+            serde_json::json!({"shallow_colour": [300, 0, 0]}),
+            "300",
+        ),
     ] {
         let mut body = serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict]});
         body[field] = value;
         let (st, v) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
         assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{field}: {v}");
-        assert!(v["detail"].as_str().unwrap().contains(field), "{v}");
+        assert!(v["detail"].as_str().unwrap().contains(named), "{v}");
     }
+    // Nothing of the refused worlds is stored.
+    assert_eq!(store_files(dir.path()), before);
+    assert_eq!(
+        send_json(&app, get("/worlds/bad")).await.0,
+        StatusCode::NOT_FOUND
+    );
+    // Valid lake settings are taken.
+    let body = serde_json::json!({"name": "lakes", "base": base, "dictionaries": [dict],
+        "water": {"lakes": true, "lake_min_area_m2": 5e5, "lake_min_depth_m": 2.0}});
+    let (st, w) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+    assert_eq!(st, StatusCode::CREATED, "{w}");
     // A world named like an admin route could never be deleted (DELETE /admin/worlds/sketch
     // is not the world's route): refused by name, nothing stored.
     let before = store_files(dir.path());

@@ -563,6 +563,7 @@ impl Catalogue {
                 fill_m: None,
                 center: None,
                 sea_level_m: None,
+                water: None,
                 scatter: None,
             },
             &self.defaults,
