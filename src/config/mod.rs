@@ -262,6 +262,12 @@ pub struct WorldConfig {
     /// Atoms per primitive of the amplifier, 1–8 (default: the dictionary's own sparsity).
     #[serde(default)]
     pub sparsity: Option<u32>,
+    /// Sea level, metres (default: 0 for a base with cells below 0, no sea otherwise).
+    #[serde(default)]
+    pub sea_level_m: Option<f32>,
+    /// Lake minima and water colours (`[water]`).
+    #[serde(default)]
+    pub water: terrasynth_core::landscape::WaterConfig,
     /// Dictionary build settings of a world with one dictionary (`[dictionary]`: every amplified
     /// zoom).
     #[serde(default)]

@@ -14,7 +14,7 @@ use sha2::{Digest, Sha256};
 
 use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
 use terrasynth_core::dictionary::{Dictionary, ExemplarOptions, Learning};
-use terrasynth_core::landscape::exemplar_vegetation;
+use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
 use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
 use terrasynth_tiles::{DictionaryBand, TileError, World, WorldParts};
@@ -230,6 +230,10 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
             landscape: wc.landscape.clone(),
             center: wc.center,
             sparsity: wc.sparsity,
+            water: WaterConfig {
+                sea_level_m: wc.sea_level_m,
+                ..wc.water.clone()
+            },
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         if let Some(why) = share_shortfall(&world) {
@@ -266,6 +270,10 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         weights: def.match_weights(),
         cache_bytes,
         landscape: resolved.landscape,
+        water: WaterConfig {
+            sea_level_m: def.sea_level_m,
+            ..def.water.clone().unwrap_or_default()
+        },
         name: def.name,
     })
 }

@@ -1109,17 +1109,21 @@ async fn api_dictionaries_and_worlds_use_their_own_species_and_materials() {
             body
         }
     };
-    // Splat: every pixel of the lava world is wholly lava (channel R = 255, the others 0).
+    // Splat: every pixel of the lava world is wholly lava (channel R = 255, the others 0), or
+    // nothing outside the base's coverage.
     let (_, _, splat) = decode_rgba(&tile("lava", "splat", "png").await);
-    assert!(splat.chunks(4).all(|p| p == [255, 0, 0, 0]));
+    assert!(splat
+        .chunks(4)
+        .all(|p| p == [255, 0, 0, 0] || p == [0, 0, 0, 0]));
+    assert!(splat.chunks(4).any(|p| p == [255, 0, 0, 0]));
     let (_, _, plain_splat) = decode_rgba(&tile("plain", "splat", "png").await);
     assert!(plain_splat.chunks(4).any(|p| p != [255, 0, 0, 0]));
     // Colour: lava's colour (200, 0, 0) shaded; green and blue stay 0. The default materials
-    // (snow, rock, meadow...) give other colours.
+    // (snow, rock, meadow...) give other colours. Transparent outside the base's coverage.
     let (_, _, colour) = decode_rgba(&tile("lava", "color", "png").await);
     assert!(colour
         .chunks(4)
-        .all(|p| p[1] == 0 && p[2] == 0 && p[3] == 255));
+        .all(|p| p[1] == 0 && p[2] == 0 && (p[3] == 255 || p == [0, 0, 0, 0])));
     assert!(colour.chunks(4).any(|p| p[0] > 100));
     let (_, _, plain_colour) = decode_rgba(&tile("plain", "color", "png").await);
     assert!(plain_colour.chunks(4).any(|p| p[1] > 0));
@@ -1276,17 +1280,47 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
     assert_eq!(w["center"][0], 74.05);
     assert_eq!(w["center"][1], 42.45);
     assert_eq!(w["title"], "peak2");
-    for (field, value) in [
-        ("center", serde_json::json!([200.0, 0.0])),
-        ("fill_m", serde_json::json!(1e9)),
-        ("title", serde_json::json!("  ")),
+    let before = store_files(dir.path());
+    for (field, value, named) in [
+        ("center", serde_json::json!([200.0, 0.0]), "center"),
+        ("fill_m", serde_json::json!(1e9), "fill_m"),
+        ("sea_level_m", serde_json::json!(-2e4), "sea_level_m"),
+        ("title", serde_json::json!("  "), "title"),
+        (
+            "water",
+            serde_json::json!({"lakes": true, "lake_min_area_m2": -1.0}),
+            "water.lake_min_area_m2",
+        ),
+        (
+            "water",
+            serde_json::json!({"lakes": true, "lake_min_depth_m": 0.0}),
+            "water.lake_min_depth_m",
+        ),
+        ("water", serde_json::json!({"deep_m": -5.0}), "water.deep_m"),
+        ("water", serde_json::json!({"lake": true}), "lake"),
+        (
+            "water",
+            serde_json::json!({"shallow_colour": [300, 0, 0]}),
+            "300",
+        ),
     ] {
         let mut body = serde_json::json!({"name": "bad", "base": base, "dictionaries": [dict]});
         body[field] = value;
         let (st, v) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
         assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{field}: {v}");
-        assert!(v["detail"].as_str().unwrap().contains(field), "{v}");
+        assert!(v["detail"].as_str().unwrap().contains(named), "{v}");
     }
+    // Nothing of the refused worlds is stored.
+    assert_eq!(store_files(dir.path()), before);
+    assert_eq!(
+        send_json(&app, get("/worlds/bad")).await.0,
+        StatusCode::NOT_FOUND
+    );
+    // Valid lake settings are taken.
+    let body = serde_json::json!({"name": "lakes", "base": base, "dictionaries": [dict],
+        "water": {"lakes": true, "lake_min_area_m2": 5e5, "lake_min_depth_m": 2.0}});
+    let (st, w) = send_json(&app, json(Method::POST, "/admin/worlds", body)).await;
+    assert_eq!(st, StatusCode::CREATED, "{w}");
     // A world named like an admin route could never be deleted (DELETE /admin/worlds/sketch
     // is not the world's route): refused by name, nothing stored.
     let before = store_files(dir.path());

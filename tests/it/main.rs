@@ -17,6 +17,9 @@
 //! - [`instances`]: instance tiles (#17): a tile alone is the window of a block, distances across
 //!   borders, coherence with the layers and the ground, counts following the density;
 //! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list;
+//! - [`coverage`]: overlays are transparent exactly outside a small base and in its hole (#15);
+//! - [`water`]: sea and lakes (#15): flat lake surfaces and beds, drainage ending at the shore,
+//!   seamless and deterministic water tiles;
 //! - [`webp`]: lossless WebP tiles carry the PNG tiles' pixels;
 //! - [`points`]: point queries answer the EXR tiles' values;
 //! - [`contours`]: contour tiles (#19): lines meet across tile borders, a tile alone is the
@@ -31,6 +34,7 @@ mod admin;
 mod admin_e2e;
 mod cli;
 mod contours;
+mod coverage;
 mod e2e;
 mod gradient_cli;
 mod hardening;
@@ -41,5 +45,6 @@ mod server;
 mod sketch;
 mod support;
 mod tile_hashes;
+mod water;
 mod web;
 mod webp;

@@ -317,7 +317,8 @@ async fn tilejson_worlds_health_metrics() {
             "vegetation",
             "drainage",
             "splat",
-            "color"
+            "color",
+            "water"
         ])
     );
     let (st, h, body) = send(&app, get("/healthz")).await;
@@ -536,7 +537,8 @@ async fn landscape_layers_over_http() {
 
     // Errors: bad set (400), parameters of another layer (400), unknown format/layer (404).
     for (uri, want) in [
-        (format!("/tiles/mini/splat/{z}/{x}/{y}.png?set=2"), 400),
+        // Eight materials and `water`: three sets.
+        (format!("/tiles/mini/splat/{z}/{x}/{y}.png?set=3"), 400),
         (format!("/tiles/mini/splat/{z}/{x}/{y}.png?set=-1"), 400),
         (format!("/tiles/mini/splat/{z}/{x}/{y}.png?set=x"), 400),
         (format!("/tiles/mini/vegetation/{z}/{x}/{y}.png?set=1"), 400),
@@ -581,7 +583,7 @@ async fn landscape_layers_over_http() {
     assert_eq!(style["sources"]["terrain"]["type"], "raster-dem");
     assert_eq!(style["sources"]["terrain"]["encoding"], "terrarium");
     let layers = style["layers"].as_array().unwrap();
-    for id in ["color", "vegetation", "drainage", "hillshade"] {
+    for id in ["color", "water", "vegetation", "drainage", "hillshade"] {
         let l = layers.iter().find(|l| l["id"] == id).unwrap();
         assert!(l["layout"]["visibility"] == "visible" || l["layout"]["visibility"] == "none");
     }
@@ -857,6 +859,7 @@ fn a_world_on_a_utm_base_lies_where_the_data_lies() {
         landscape: LandscapeConfig::tienshan(),
         center: None,
         sparsity: None,
+        water: Default::default(),
     })
     .unwrap();
     let [w, s, e, n] = world.bounds();

@@ -562,6 +562,8 @@ impl Catalogue {
                 attribution: None,
                 fill_m: None,
                 center: None,
+                sea_level_m: None,
+                water: None,
                 scatter: None,
             },
             &self.defaults,

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use terrasynth_core::dictionary::MatchWeights;
-use terrasynth_core::landscape::{LandscapeConfig, Material, ScatterRule, Species};
+use terrasynth_core::landscape::{LandscapeConfig, Material, ScatterRule, Species, WaterConfig};
 use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
 use terrasynth_core::raster::georef::{is_map_point, MAX_MERCATOR_LAT};
 use terrasynth_core::synth::{check_bands, ZoomBand};
@@ -51,6 +51,13 @@ pub struct WorldDefinition {
     /// Where map clients open, `[lon, lat]`; absent: over the base's highest-relief region.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub center: Option<[f64; 2]>,
+    /// Sea level, metres; absent: 0 for a base with cells below 0, no sea otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sea_level_m: Option<f32>,
+    /// Lakes and water colours, as a world file's `[water]`; absent: the defaults (no lakes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub water: Option<WaterConfig>,
     /// Scattering rules of the instance tiles, each as a world file's `[[landscape.scatter]]`;
     /// absent: the default world's (less the rules naming species or materials it lacks).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -117,6 +124,16 @@ pub struct WorldRequest {
     /// highest-relief region).
     #[serde(default)]
     pub center: Option<[f64; 2]>,
+    /// Sea level, metres (default: 0 for a base with cells below 0, no sea otherwise; finite,
+    /// within ±12,000 m).
+    #[serde(default)]
+    pub sea_level_m: Option<f32>,
+    /// Lakes and water colours, as a world file's `[water]`: `{"lakes": bool,
+    /// "lake_min_area_m2", "lake_min_depth_m", "shallow_colour": [r, g, b], "deep_colour",
+    /// "deep_m"}` (default: no lakes; minima 1 km² and 20 m). Checked: 422 naming the field.
+    #[serde(default)]
+    #[schema(value_type = Option<Object>)]
+    pub water: Option<WaterConfig>,
     /// Scattering rules of the instance tiles, each as a world file's `[[landscape.scatter]]`
     /// (`{"kind", "method": "jittered_grid" | "collision" | "survival", "species", "materials",
     /// "name", "spacing_m", "min_distance_m", "jitter", "height_m", "radius_m", "age_classes",
@@ -266,8 +283,14 @@ impl WorldDefinition {
             attribution: r.attribution,
             fill_m: r.fill_m.unwrap_or(0.0),
             center: r.center,
+            sea_level_m: r.sea_level_m,
+            water: r.water,
             scatter: r.scatter,
         };
+        if let Some(w) = &def.water {
+            w.validate()
+                .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+        }
         if def
             .title
             .as_ref()
@@ -289,6 +312,14 @@ impl WorldDefinition {
         if !def.fill_m.is_finite() || def.fill_m.abs() > 12_000.0 {
             return Err(ServiceError::Invalid(
                 "fill_m must be a finite elevation within ±12,000 m".into(),
+            ));
+        }
+        if def
+            .sea_level_m
+            .is_some_and(|s| !s.is_finite() || s.abs() > 12_000.0)
+        {
+            return Err(ServiceError::Invalid(
+                "sea_level_m must be a finite elevation within ±12,000 m".into(),
             ));
         }
         if def.center.is_some_and(|c| !is_map_point(c)) {

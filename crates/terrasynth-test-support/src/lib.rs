@@ -177,6 +177,7 @@ pub fn mini_world_bands(
         landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
         center: None,
         sparsity: None,
+        water: terrasynth_core::landscape::WaterConfig::default(),
     })
 }
 

@@ -1,5 +1,5 @@
 //! Whole-world layers at the native zoom: priority-flood filling and D8 flow accumulation of the
-//! whole base (upstream area in m²), and the niche model with the seeding simulation for
+//! whole base (upstream area in m², ending in the sea, nothing from outside the coverage), and the niche model with the seeding simulation for
 //! vegetation. Drainage is global by nature, so it is computed once per world on a fixed window
 //! of the native zoom's plane ([`crate::extent::Extent::world_window`]); the native-zoom tiles of
 //! drainage and vegetation are cut out of it.
@@ -13,11 +13,8 @@ use terrasynth_core::landscape::{vegetation, LandscapeConfig};
 use terrasynth_core::synth::Window;
 
 use crate::cancel::uncancellable;
-use crate::elevation::ElevationLevels;
+use crate::elevation::{ElevationLevels, MAX_WORLD_PIXELS};
 use crate::error::TileError;
-
-/// Largest whole-world window, pixels.
-const MAX_WORLD_PIXELS: usize = 1 << 26;
 
 /// Whole-world layers at the native zoom.
 #[derive(Debug)]
@@ -30,10 +27,12 @@ pub struct BaseLayers {
     pub vegetation: Vec<Array2<f32>>,
 }
 
-/// Bytes the whole-world layers over `window` hold: the upstream area and one grid per species,
-/// f32 each.
-pub fn base_layer_bytes(window: Window, species: usize) -> u64 {
-    (window.len() as u64).saturating_mul(4 * (1 + species as u64))
+/// Bytes the whole-world layers over `window` hold: the upstream area, one grid per species and,
+/// for a world that may have water, the water's two grids ([`ElevationLevels::base_water`]; a
+/// world without sea level or lakes never computes them), f32 each.
+pub fn base_layer_bytes(window: Window, species: usize, water: bool) -> u64 {
+    let grids = 1 + species as u64 + if water { 2 } else { 0 };
+    (window.len() as u64).saturating_mul(4 * grids)
 }
 
 /// Copies the part of `a` (held over `aw`) that lies in `w` into a `w`-shaped grid, `fill`
@@ -55,6 +54,15 @@ pub fn cut(a: &Array2<f32>, aw: Window, w: Window, fill: f32) -> Array2<f32> {
         ]));
     }
     out
+}
+
+/// The value of `a` (held over `aw`) at `(r, c)` of window `w`, 0 outside `aw`.
+fn cut_at(a: &Array2<f32>, aw: Window, w: Window, r: usize, c: usize) -> f32 {
+    let (gr, gc) = (w.row0 + r as i64 - aw.row0, w.col0 + c as i64 - aw.col0);
+    if gr < 0 || gc < 0 {
+        return 0.0;
+    }
+    a.get((gr as usize, gc as usize)).copied().unwrap_or(0.0)
 }
 
 /// The whole-world layers of a world, computed once on first use (or ahead of time by
@@ -95,15 +103,39 @@ fn compute(
     }
     let heights = elevation.window(z, window)?;
     let cells = extent.cell_sizes(z, window.row0, window.rows);
-    let area64 = analysis::flow_accumulation_d8(&analysis::priority_flood_fill(&heights), &cells);
-    let wet = analysis::log_upstream_area(&area64);
+    let covered = elevation
+        .coverage_window(z, window)?
+        .mapv(|c| !crate::coverage::uncovered(c));
+    let water = elevation.base_water()?;
+    let is_sea = |r: usize, c: usize| {
+        water
+            .as_ref()
+            .is_some_and(|w| cut_at(&w.sea, w.window, window, r, c) > 0.0)
+    };
+    // D8 on the filled surface: lakes pass their inflow on at their outlet; flow ends where it
+    // enters the sea (sea cells are sinks) and nothing is routed from uncovered or sea cells.
+    let mut receivers = analysis::d8_receivers(&analysis::priority_flood_fill(&heights), &cells);
+    let sink = |r: usize, c: usize| is_sea(r, c) || !covered[[r, c]];
+    for ((r, c), code) in receivers.indexed_iter_mut() {
+        if is_sea(r, c) {
+            *code = analysis::D8_NONE;
+        }
+    }
+    let sources =
+        Array2::from_shape_fn(
+            heights.dim(),
+            |(r, c)| if sink(r, c) { 0.0 } else { cells.area(r) },
+        );
+    let area64 = analysis::accumulate_sources(&receivers, &sources);
+    drop(receivers);
+    let wetness = analysis::log_upstream_area(&area64);
     let area = area64.mapv(|v| v as f32);
     drop(area64);
     let vegetation = vegetation::densities(
         landscape,
         &heights,
         &cells,
-        &wet,
+        &wetness,
         (window.row0, window.col0),
     );
     Ok(BaseLayers {

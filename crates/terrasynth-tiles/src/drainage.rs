@@ -8,6 +8,11 @@
 //!   pixel it drains into. The region is a function of the tile's global coordinates only, so a
 //!   drainage value is a pure function of `(z, x, y)`: a tile alone equals the same window of any
 //!   larger assembled region, and the halo keeps routing identical near tile borders.
+//! - **Coverage**: upstream area is 0 outside the base's coverage ([`crate::coverage`]), where
+//!   amplified levels have no sources either: nothing is routed there.
+//! - **Water** ([`crate::water`]): the upstream area is 0 under water; sea pixels are sinks and
+//!   have no sources (flow ends at the coast), lakes are routed across their filled surface so
+//!   they pass their inflow on at their outlet.
 //! - **Overviews** (`z < z_b`): the maximum of the 2×2 children (the upstream area of the coarse
 //!   pixel's main channel).
 
@@ -19,9 +24,11 @@ use terrasynth_core::analysis::{self, D8_OFFSETS};
 use terrasynth_core::synth::Window;
 
 use crate::base_layers::{cut, WholeWorld};
+use crate::coverage::mask_in_place;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
+use crate::water::{zero_under_water, WaterLevels, DEPTH, SEA};
 
 /// Halo (pixels, even) of the local drainage routing around an amplified tile.
 pub const DRAIN_HALO: i64 = 128;
@@ -54,12 +61,14 @@ impl DrainageLevels {
         &self,
         elevation: &ElevationLevels,
         whole: &WholeWorld,
+        water: &WaterLevels,
         z: u8,
         tx: i64,
         ty: i64,
     ) -> Result<Arc<Array2<f32>>, TileError> {
-        self.cache
-            .get_or_compute((z, tx, ty), || self.compute(elevation, whole, z, tx, ty))
+        self.cache.get_or_compute((z, tx, ty), || {
+            self.compute(elevation, whole, water, z, tx, ty)
+        })
     }
 
     /// Drainage over window `w` of zoom `z`, assembled from tiles.
@@ -67,16 +76,18 @@ impl DrainageLevels {
         &self,
         elevation: &ElevationLevels,
         whole: &WholeWorld,
+        water: &WaterLevels,
         z: u8,
         w: Window,
     ) -> Result<Array2<f32>, TileError> {
-        assemble(w, 1, |tx, ty| self.tile(elevation, whole, z, tx, ty))
+        assemble(w, 1, |tx, ty| self.tile(elevation, whole, water, z, tx, ty))
     }
 
     fn compute(
         &self,
         elevation: &ElevationLevels,
         whole: &WholeWorld,
+        water: &WaterLevels,
         z: u8,
         tx: i64,
         ty: i64,
@@ -86,14 +97,18 @@ impl DrainageLevels {
         let zb = extent.z_base;
         if z == zb {
             let base = whole.get(elevation)?;
-            return Ok(cut(&base.area, base.window, w, 0.0));
+            let mut area = cut(&base.area, base.window, w, 0.0);
+            let coverage = elevation.coverage_tile(z, tx, ty)?;
+            mask_in_place(&mut area, &coverage);
+            zero_under_water(&mut area, &water.tile(elevation, z, tx, ty)?[DEPTH]);
+            return Ok(area);
         }
         if z < zb {
             return overview(tx, ty, 1, 0.0, max4, |cx, cy| {
                 if extent.tile_outside(z + 1, cx, cy) {
                     return Ok(None);
                 }
-                self.tile(elevation, whole, z + 1, cx, cy).map(Some)
+                self.tile(elevation, whole, water, z + 1, cx, cy).map(Some)
             });
         }
         // The routing region: the tile plus an even halo, so that it maps onto whole parent
@@ -103,8 +118,23 @@ impl DrainageLevels {
         let heights = elevation.window(z, region)?;
         let cells = extent.cell_sizes(z, region.row0, region.rows);
         let filled = analysis::priority_flood_fill(&heights);
-        let receivers = analysis::d8_receivers(&filled, &cells);
-        let mut sources = Array2::from_shape_fn(heights.dim(), |(r, _)| cells.area(r));
+        let mut receivers = analysis::d8_receivers(&filled, &cells);
+        // Nothing is routed outside the base's coverage or from the sea: no sources there; flow
+        // ends where it enters the sea.
+        let coverage = elevation.coverage_window(z, region)?;
+        let wet = water.window(elevation, z, region)?;
+        for ((r, c), code) in receivers.indexed_iter_mut() {
+            if wet[SEA][[r, c]] > 0.0 {
+                *code = analysis::D8_NONE;
+            }
+        }
+        let mut sources = Array2::from_shape_fn(heights.dim(), |(r, c)| {
+            if crate::coverage::uncovered(coverage[[r, c]]) || wet[SEA][[r, c]] > 0.0 {
+                0.0
+            } else {
+                cells.area(r)
+            }
+        });
         // Parent inflow: parent pixels on the ring around the region's parent window whose
         // steepest descent points into it.
         let pw = Window::new(
@@ -116,7 +146,7 @@ impl DrainageLevels {
         let ew = Window::new(pw.col0 - 2, pw.row0 - 2, pw.cols + 4, pw.rows + 4);
         let pe = elevation.window(z - 1, ew)?;
         let aw = Window::new(pw.col0 - 1, pw.row0 - 1, pw.cols + 2, pw.rows + 2);
-        let pa = self.window(elevation, whole, z - 1, aw)?;
+        let pa = self.window(elevation, whole, water, z - 1, aw)?;
         let pcells = extent.cell_sizes(z - 1, ew.row0, ew.rows);
         for (qr, qc) in ring(aw) {
             // (qr, qc) are global parent coordinates on the ring.
@@ -159,9 +189,22 @@ impl DrainageLevels {
         }
         let area = analysis::accumulate_sources(&receivers, &sources);
         let hs = h as usize;
-        Ok(area
+        let mut out = area
             .slice(s![hs..hs + w.rows, hs..hs + w.cols])
-            .mapv(|v| v as f32))
+            .mapv(|v| v as f32);
+        mask_in_place(
+            &mut out,
+            &coverage
+                .slice(s![hs..hs + w.rows, hs..hs + w.cols])
+                .to_owned(),
+        );
+        zero_under_water(
+            &mut out,
+            &wet[DEPTH]
+                .slice(s![hs..hs + w.rows, hs..hs + w.cols])
+                .to_owned(),
+        );
+        Ok(out)
     }
 }
 

@@ -8,6 +8,12 @@
 //! is window-invariant, a tile computed alone equals the same window of any larger region. A tile
 //! of zoom `z < z_b` is the 2×2 box average of its four children, so zooming is consistent.
 //!
+//! Amplified pixels outside the base's coverage are the fill, exactly. Cells under water keep
+//! their bed elevation; where the bed is exactly flat under water (a
+//! flat lake bed), amplified levels add no detail ([`calm_flat_water`]). The sea and lakes of the
+//! native zoom are computed here once ([`ElevationLevels::base_water`]) since they depend only on
+//! the native-zoom elevation and coverage.
+//!
 //! **Least work on a cold chain.** When none of the parent tiles a tile needs is cached or being
 //! computed (an area nobody has visited), the tile does not wait for whole parent tiles down to
 //! the native zoom: its parent *window* is amplified directly from the grandparent window it
@@ -19,16 +25,18 @@
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, Weak};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::Instant;
 
 use ndarray::Array2;
 
+use terrasynth_core::landscape::{water, WaterConfig};
 use terrasynth_core::raster::{box2, Grid};
 use terrasynth_core::synth::{Amplifier, Field, Window};
 
 use crate::cancel::uncancellable;
 use crate::chain::Chain;
+use crate::coverage::CoverageLevels;
 use crate::error::TileError;
 use crate::extent::Extent;
 use crate::pyramid::{assemble, for_each_tile_part, overview, tile_window, LevelCache, TileKey};
@@ -41,6 +49,9 @@ pub struct ElevationLevels {
     extent: Extent,
     amplifiers: Chain<Amplifier>,
     cache: LevelCache<Array2<f32>>,
+    coverage: CoverageLevels,
+    water: WaterConfig,
+    base_water: OnceLock<Result<Option<Arc<BaseWater>>, TileError>>,
     prefill: Prefill,
     /// This levels' own handle, for the background thread of [`Prefill`].
     me: Weak<ElevationLevels>,
@@ -70,6 +81,21 @@ impl Prefill {
     }
 }
 
+/// Largest whole-world window of the native zoom, pixels.
+pub const MAX_WORLD_PIXELS: usize = 1 << 26;
+
+/// The sea and lakes of the native zoom's whole-world window
+/// ([`terrasynth_core::landscape::water`] on the native-zoom elevation and coverage).
+#[derive(Debug)]
+pub struct BaseWater {
+    /// The window of the native zoom's plane they cover.
+    pub window: Window,
+    /// Water surface level, metres; NaN where dry.
+    pub level: Array2<f32>,
+    /// 1 on sea cells, 0 elsewhere.
+    pub sea: Array2<f32>,
+}
+
 impl std::fmt::Debug for ElevationLevels {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ElevationLevels")
@@ -80,19 +106,26 @@ impl std::fmt::Debug for ElevationLevels {
 
 impl ElevationLevels {
     /// Levels over `base` (outside it: `fill_m`), each zoom amplified with its band's amplifier
-    /// of `amplifiers`, cached in at most `cache_bytes` bytes.
+    /// of `amplifiers`, cached in at most `cache_bytes` bytes (the coverage overviews in at most
+    /// `coverage_bytes` more), with the sea and lakes of `water`.
     pub fn new(
         base: Grid,
         fill_m: f32,
         extent: Extent,
         amplifiers: Chain<Amplifier>,
         cache_bytes: u64,
+        coverage_bytes: u64,
+        water: WaterConfig,
     ) -> Arc<Self> {
+        let coverage = CoverageLevels::new(&base, coverage_bytes);
         Arc::new_cyclic(|me| ElevationLevels {
             base,
             fill_m,
             extent,
             amplifiers,
+            water,
+            base_water: OnceLock::new(),
+            coverage,
             cache: LevelCache::new(cache_bytes),
             prefill: Prefill::default(),
             me: me.clone(),
@@ -120,6 +153,56 @@ impl ElevationLevels {
     /// The cache of level tiles.
     pub fn cache(&self) -> &LevelCache<Array2<f32>> {
         &self.cache
+    }
+
+    /// The cache of coverage overview tiles.
+    pub fn coverage_cache(&self) -> &LevelCache<Array2<f32>> {
+        self.coverage.cache()
+    }
+
+    /// The coverage tile `(z, tx, ty)`: the fraction of each pixel the base's valid data covers
+    /// ([`crate::coverage`]).
+    pub fn coverage_tile(&self, z: u8, tx: i64, ty: i64) -> Result<Arc<Array2<f32>>, TileError> {
+        self.coverage.tile(&self.base, &self.extent, z, tx, ty)
+    }
+
+    /// Coverage over window `w` of zoom `z`.
+    pub fn coverage_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
+        self.coverage.window(&self.base, &self.extent, z, w)
+    }
+
+    /// The sea and lakes of the native zoom (`None`: nothing is wet), computed once on first use
+    /// (never cancelled: the result is kept).
+    pub fn base_water(&self) -> Result<Option<Arc<BaseWater>>, TileError> {
+        self.base_water
+            .get_or_init(|| uncancellable(|| self.compute_base_water()))
+            .clone()
+    }
+
+    fn compute_base_water(&self) -> Result<Option<Arc<BaseWater>>, TileError> {
+        if !self.water.may_have_water() {
+            // No sea level and no lakes: dry everywhere, without looking at the whole world.
+            return Ok(None);
+        }
+        let z = self.extent.z_base;
+        let window = self.extent.world_window(z);
+        if window.len() > MAX_WORLD_PIXELS {
+            return Err(TileError::WorldTooLarge(window));
+        }
+        let heights = self.window(z, window)?;
+        let covered = self
+            .coverage_window(z, window)?
+            .mapv(|c| !crate::coverage::uncovered(c));
+        let cells = self.extent.cell_sizes(z, window.row0, window.rows);
+        let wet = water(&heights, &covered, &cells, &self.water);
+        if wet.level.iter().all(|v| v.is_nan()) {
+            return Ok(None);
+        }
+        Ok(Some(Arc::new(BaseWater {
+            window,
+            level: wet.level,
+            sea: wet.sea.mapv(f32::from),
+        })))
     }
 
     /// The level tile `(z, tx, ty)`, computed once. Tile indices may lie outside `[0, 2^z)`.
@@ -197,7 +280,27 @@ impl ElevationLevels {
         let need = amplifier.parent_window_for(w);
         let parent = Field::elevation_only(need, self.parent_window(z - 1, need, route)?);
         let field = amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
-        Ok(field.elevation)
+        let mut out = field.elevation;
+        // Outside the coverage the elevation is the fill, exactly (no detail over no data).
+        let coverage = self.coverage_window(z, w)?;
+        ndarray::Zip::from(&mut out)
+            .and(&*coverage)
+            .for_each(|v, &c| {
+                if crate::coverage::uncovered(c) {
+                    *v = self.fill_m;
+                }
+            });
+        if let Some(bw) = self.base_water()? {
+            calm_flat_water(
+                &mut out,
+                w,
+                &parent.elevation,
+                need,
+                &bw,
+                z - self.extent.z_base,
+            );
+        }
+        Ok(out)
     }
 
     /// Window `w` of zoom `z` as a child's parent: assembled from tiles, unless the least-work
@@ -277,4 +380,42 @@ enum Route {
     LeastWork,
     /// Parent tiles always (the background thread, which fills the caches).
     Tiles,
+}
+
+/// No detail on flat beds under water: a pixel of an amplified level whose native-zoom ancestor
+/// is wet and whose parent pixel and its eight neighbours are exactly equal takes the parent's
+/// value (so a flat lake bed stays flat, bit for bit, at every zoom). A function of global
+/// coordinates only: window-invariant.
+fn calm_flat_water(
+    out: &mut Array2<f32>,
+    w: Window,
+    parent: &Array2<f32>,
+    pw: Window,
+    bw: &BaseWater,
+    levels_above_base: u8,
+) {
+    let shift = u32::from(levels_above_base);
+    let at = |a: &Array2<f32>, win: Window, gr: i64, gc: i64| -> Option<f32> {
+        let (r, c) = (gr - win.row0, gc - win.col0);
+        if r < 0 || c < 0 {
+            return None;
+        }
+        a.get((r as usize, c as usize)).copied()
+    };
+    for ((r, c), v) in out.indexed_iter_mut() {
+        let (gr, gc) = (w.row0 + r as i64, w.col0 + c as i64);
+        let wet = at(&bw.level, bw.window, gr >> shift, gc >> shift).is_some_and(|l| !l.is_nan());
+        if !wet {
+            continue;
+        }
+        let (pr, pc) = (gr >> 1, gc >> 1);
+        let Some(centre) = at(parent, pw, pr, pc) else {
+            continue;
+        };
+        let flat =
+            (-1..=1).all(|dr| (-1..=1).all(|dc| at(parent, pw, pr + dr, pc + dc) == Some(centre)));
+        if flat {
+            *v = centre;
+        }
+    }
 }

@@ -69,6 +69,8 @@ pub fn instances_in(world: &World, z: u8, w: Window) -> Result<Vec<Placed>, Tile
         Vec::new()
     };
     let ground = world.elevation_window(z, w)?;
+    // Nothing is scattered outside the base's coverage.
+    let coverage = world.coverage_window(z, w)?;
     let rect = [
         w.col0 as f64,
         w.row0 as f64,
@@ -105,6 +107,12 @@ pub fn instances_in(world: &World, z: u8, w: Window) -> Result<Vec<Placed>, Tile
         for instance in scatter(rule, k as u64, cell_m, &field, rect) {
             let r = (instance.y.floor() as i64 - w.row0) as usize;
             let c = (instance.x.floor() as i64 - w.col0) as usize;
+            if coverage
+                .get((r, c))
+                .is_none_or(|&v| crate::coverage::uncovered(v))
+            {
+                continue;
+            }
             out.push(Placed {
                 rule: k,
                 instance,

@@ -1,8 +1,9 @@
 //! terrasynth's tiles: everything between the numeric pipeline and the sockets. Web Mercator XYZ
-//! math ([`mercator`]), a world's place on the planes ([`extent`]), resampling a georeferenced
+//! math ([`mercator`]), a world's place on the planes ([`extent`]) and the base's data coverage
+//! ([`coverage`]), resampling a georeferenced
 //! grid onto a zoom's plane ([`resample`]), the one level pyramid every layer uses ([`pyramid`]:
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
-//! ([`elevation`], [`drainage`], [`vegetation`], the whole-world layers of the native zoom in
+//! ([`elevation`], [`drainage`], [`vegetation`], [`water`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
 //! ([`world`]) with a dictionary per zoom band ([`chain`]), instances of plants and rocks as vector
 //! tiles ([`instances`]), contour lines of the served elevation as vector tiles ([`contours`]),
@@ -19,6 +20,7 @@ pub mod base_layers;
 pub mod cancel;
 pub mod chain;
 pub mod contours;
+pub mod coverage;
 pub mod drainage;
 pub mod elevation;
 pub mod encode;
@@ -36,6 +38,7 @@ pub mod style;
 pub mod terrain;
 pub mod tilejson;
 pub mod vegetation;
+pub mod water;
 pub mod world;
 
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};

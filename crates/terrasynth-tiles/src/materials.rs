@@ -1,4 +1,5 @@
-//! Splat weights and the colour map's inputs for a tile: per-pixel functions of the tile's
+//! Splat weights and the colour map's inputs for a tile (with the `water` material of submerged
+//! pixels, see [`crate::water`]): per-pixel functions of the tile's
 //! elevation (slope, northness and curvature from a one-pixel border), wetness (log10 of the
 //! drainage) and vegetation, so they are seamless and deterministic whenever those are.
 
@@ -6,14 +7,45 @@ use ndarray::Array2;
 
 use terrasynth_core::landscape::{self, LandscapeConfig, LayerInputs};
 
+use crate::coverage::mask_in_place;
 use crate::error::TileError;
 use crate::mercator::pixel_size_m;
 use crate::pyramid::tile_window;
 use crate::terrain::Terrain;
 use crate::vegetation::{wetness, Inputs, VegetationLevels};
+use crate::water::{zero_under_water, DEPTH};
 
-/// Normalised material weights of tile `(z, tx, ty)` (one grid per material, summing to 1), and
-/// the tile's hillshade (0–1).
+/// Name of the material of submerged pixels: a landscape material of that name, else one
+/// appended after the landscape's materials.
+pub const WATER_MATERIAL: &str = "water";
+
+/// Index of the `water` material among the splat weights: the landscape's material of that name,
+/// else `materials.len()` (appended).
+pub fn water_index(landscape: &LandscapeConfig) -> usize {
+    landscape
+        .materials
+        .iter()
+        .position(|m| m.name == WATER_MATERIAL)
+        .unwrap_or(landscape.materials.len())
+}
+
+/// The names of the splat weights in order: the landscape's materials, then `water` unless the
+/// landscape has a material of that name.
+pub fn splat_names(landscape: &LandscapeConfig) -> Vec<&str> {
+    let mut v: Vec<&str> = landscape
+        .materials
+        .iter()
+        .map(|m| m.name.as_str())
+        .collect();
+    if water_index(landscape) == v.len() {
+        v.push(WATER_MATERIAL);
+    }
+    v
+}
+
+/// Normalised material weights of tile `(z, tx, ty)` (one grid per name of [`splat_names`]:
+/// submerged pixels are all `water`; summing to the pixel's coverage: 1 inside the base, 0 outside it, see [`crate::coverage`]), and the tile's
+/// hillshade (0–1).
 pub fn material_tile(
     landscape: &LandscapeConfig,
     vegetation: &VegetationLevels,
@@ -26,7 +58,7 @@ pub fn material_tile(
     let terrain = Terrain::of(inputs.elevation, z, w)?;
     let area = inputs
         .drainage
-        .tile(inputs.elevation, inputs.whole, z, tx, ty)?;
+        .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)?;
     let wet = wetness(&area);
     let veg = vegetation.tile(inputs, z, tx, ty)?;
     let layer_inputs = LayerInputs {
@@ -39,8 +71,28 @@ pub fn material_tile(
         origin: (w.row0, w.col0),
         pixel_m: pixel_size_m(z),
     };
-    Ok((
-        landscape::material_weights(landscape, &layer_inputs),
-        terrain.shade,
-    ))
+    let mut weights = landscape::material_weights(landscape, &layer_inputs);
+    // Submerged pixels are all `water`.
+    let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
+    let k = water_index(landscape);
+    if k == weights.len() {
+        weights.push(Array2::zeros((w.rows, w.cols)));
+    }
+    for (i, m) in weights.iter_mut().enumerate() {
+        if i != k {
+            zero_under_water(m, depth);
+        }
+    }
+    ndarray::Zip::from(&mut weights[k])
+        .and(depth)
+        .for_each(|v, &d| {
+            if d > 0.0 {
+                *v = 1.0;
+            }
+        });
+    let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
+    for m in &mut weights {
+        mask_in_place(m, &coverage);
+    }
+    Ok((weights, terrain.shade))
 }

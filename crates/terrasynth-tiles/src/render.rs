@@ -1,8 +1,9 @@
 //! Renderers: a tile request computed from a world's pyramids and encoded — terrarium or mapbox
 //! PNG (256 or 512 px) and float32 EXR elevation, hillshade PNG, vegetation (RGBA channels,
 //! coloured overlay, EXR), drainage (EXR, log-alpha rivers), splat weights (RGBA per set of four
-//! materials, quantised to sum 255), the hillshaded colour map, instance tiles (MVT, GeoJSON) and
-//! contour tiles (MVT). CPU-bound: callers run it off
+//! materials, quantised to sum 255), water (EXR depth and surface, PNG coloured by depth), the
+//! hillshaded colour map (transparent outside the base's coverage, water coloured by depth),
+//! instance tiles (MVT, GeoJSON) and contour tiles (MVT). CPU-bound: callers run it off
 //! any async runtime.
 
 use std::sync::Arc;
@@ -14,6 +15,7 @@ use terrasynth_core::landscape::{colour_of, quantise_weights};
 use terrasynth_core::synth::Window;
 
 use crate::contours::encode_contours_mvt;
+use crate::coverage::uncovered;
 use crate::encode::{
     encode_float_exr, encode_gray_png, encode_mapbox_png, encode_mapbox_webp, encode_rgba_png,
     encode_rgba_webp, encode_terrarium_png, encode_terrarium_webp,
@@ -119,6 +121,23 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
             });
             encode_rgba_png(&rgba)?
         }
+        TileKind::WaterExr => {
+            let (depth, level) = world.water_tile(z, x, y)?;
+            encode_float_exr(&[("depth", &depth), ("surface", &level)])?
+        }
+        TileKind::WaterPng => {
+            let (depth, _) = world.water_tile(z, x, y)?;
+            let cfg = world.water_config();
+            let rgba = depth.mapv(|d| {
+                if d > 0.0 {
+                    let ([r, g, b], a) = cfg.colour_at(d);
+                    [r, g, b, a]
+                } else {
+                    [0, 0, 0, 0]
+                }
+            });
+            encode_rgba_png(&rgba)?
+        }
         TileKind::Splat { set } => {
             let (weights, _) = world.material_tile(z, x, y)?;
             let n = weights.len();
@@ -174,18 +193,37 @@ fn elevation_heights(
 /// The colour map's pixels: the baked material colour shaded by the hillshade.
 fn colour_map(world: &World, z: u8, x: u32, y: u32) -> Result<Array2<[u8; 4]>, TileError> {
     let (weights, shade) = world.material_tile(z, x, y)?;
+    let coverage = world.coverage_tile(z, x, y)?;
+    let (depth, _) = world.water_tile(z, x, y)?;
+    let water = world.water_config();
     let l = world.landscape();
     let flat = DEFAULT_ALTITUDE_DEG.to_radians().sin();
     let mut w = vec![0.0f32; weights.len()];
     let rgba = Array2::from_shape_fn((256, 256), |(r, c)| {
+        // Outside the base's coverage there is nothing to draw; on an overview's border the
+        // covered fraction is the alpha and the weights (which sum to it) are renormalised.
+        let cov = coverage[[r, c]];
+        if uncovered(cov) {
+            return [0, 0, 0, 0];
+        }
+        let a = (cov.min(1.0) * 255.0).round() as u8;
+        let d = depth[[r, c]];
+        if d > 0.0 {
+            // Submerged: the water colour by depth, unshaded (the surface is flat).
+            let ([wr, wg, wb], _) = water.colour_at(d);
+            return [wr, wg, wb, a];
+        }
         for (k, v) in w.iter_mut().enumerate() {
             *v = weights[k][[r, c]];
+            if cov < 1.0 {
+                *v /= cov;
+            }
         }
         let rgb = colour_of(l, &w);
         // Flat ground keeps its colour; slopes facing the light brighten, others darken.
         let f = (0.35 + 0.65 * shade[[r, c]] / flat).clamp(0.0, 1.4);
         let px = |v: f32| (v * f).round().clamp(0.0, 255.0) as u8;
-        [px(rgb[0]), px(rgb[1]), px(rgb[2]), 255]
+        [px(rgb[0]), px(rgb[1]), px(rgb[2]), a]
     });
     Ok(rgba)
 }

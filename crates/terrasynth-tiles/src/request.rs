@@ -77,6 +77,11 @@ pub enum TileKind {
     DrainageExr,
     /// Log-scaled rivers on transparent.
     DrainagePng,
+    /// Float32 water depth, m (channel `depth`; 0 where dry) and surface (channel `surface`, m;
+    /// NaN where dry).
+    WaterExr,
+    /// Water colour by depth, alpha by depth (transparent where dry).
+    WaterPng,
     /// Material weights of materials `4·set .. 4·set+3` in R, G, B, A (all sets of a pixel sum
     /// to 255).
     Splat {
@@ -112,9 +117,10 @@ impl TileKind {
     /// The `Content-Type` of the tile bytes.
     pub fn content_type(&self) -> &'static str {
         match self {
-            TileKind::ElevationExr | TileKind::VegetationExr | TileKind::DrainageExr => {
-                "image/x-exr"
-            }
+            TileKind::ElevationExr
+            | TileKind::VegetationExr
+            | TileKind::DrainageExr
+            | TileKind::WaterExr => "image/x-exr",
             TileKind::ElevationWebp { .. } | TileKind::ColorWebp => "image/webp",
             TileKind::Instances { geojson: false } | TileKind::Contours { .. } => {
                 "application/vnd.mapbox-vector-tile"
@@ -200,7 +206,7 @@ pub fn check_against_world(world: &World, req: &TileRequest) -> Result<(), Reque
         )));
     }
     let (set, count, what) = match req.kind {
-        TileKind::Splat { set } => (set, l.materials.len(), "materials"),
+        TileKind::Splat { set } => (set, crate::materials::splat_names(l).len(), "materials"),
         TileKind::VegetationPng { set, .. } => (set, l.species.len().max(1), "species"),
         _ => return Ok(()),
     };
@@ -238,8 +244,8 @@ pub fn parse_request(
     let has_format = match (layer, ext) {
         ("elevation", "png" | "webp") => true,
         ("color", "webp") => !retina,
-        ("elevation" | "vegetation" | "drainage", "exr")
-        | ("hillshade" | "vegetation" | "drainage" | "splat" | "color", "png")
+        ("elevation" | "vegetation" | "drainage" | "water", "exr")
+        | ("hillshade" | "vegetation" | "drainage" | "splat" | "color" | "water", "png")
         | ("instances", "mvt" | "json")
         | ("contours", "mvt") => !retina,
         _ => false,
@@ -318,6 +324,8 @@ pub fn parse_request(
         ("vegetation", "exr") if !retina => TileKind::VegetationExr,
         ("drainage", "exr") if !retina => TileKind::DrainageExr,
         ("drainage", "png") if !retina => TileKind::DrainagePng,
+        ("water", "exr") if !retina => TileKind::WaterExr,
+        ("water", "png") if !retina => TileKind::WaterPng,
         ("splat", "png") if !retina => TileKind::Splat {
             set: parse_set(query)?,
         },
@@ -339,8 +347,8 @@ pub fn parse_request(
             },
         },
         (
-            "elevation" | "hillshade" | "vegetation" | "drainage" | "splat" | "color" | "instances"
-            | "contours",
+            "elevation" | "hillshade" | "vegetation" | "drainage" | "water" | "splat" | "color"
+            | "instances" | "contours",
             _,
         ) => {
             return Err(RequestError::NotFound(format!(

@@ -87,51 +87,9 @@ pub fn mercator_window_from_grid(
     if src_rows == 0 || src_cols == 0 || rows == 0 || cols == 0 {
         return (values, mask);
     }
-    let g = &grid.georef;
-    let m = pixel_size_m(z);
-    let half_world = PI * MERCATOR_RADIUS_M;
-
-    // Mercator metres of the centre of global column px / row py.
-    let centre_x = |px: i64| -half_world + (px as f64 + 0.5) * m;
-    let centre_y = |py: i64| half_world - (py as f64 + 0.5) * m;
-
-    let col_taps: Vec<Option<Tap>> = (0..cols)
-        .map(|i| {
-            let x = centre_x(col0.saturating_add(i as i64));
-            match g.crs {
-                Crs::Epsg4326 => {
-                    let lon = mercator_to_lonlat(x, 0.0).0;
-                    wrapped_tap(lon, g.west, g.pixel_width, src_cols, 360.0)
-                }
-                Crs::Epsg3857 => wrapped_tap(x, g.west, g.pixel_width, src_cols, 2.0 * half_world),
-                // Projected grids are reprojected onto EPSG:4326 before they are resampled
-                // (`World::new`); never sampled here.
-                Crs::Projected(_) => None,
-            }
-        })
-        .collect();
-    let row_taps: Vec<Option<Tap>> = (0..rows)
-        .map(|j| {
-            let y = centre_y(row0.saturating_add(j as i64));
-            let src_y = match g.crs {
-                Crs::Epsg4326 => mercator_to_lonlat(0.0, y).1,
-                Crs::Epsg3857 => y,
-                Crs::Projected(_) => f64::NAN,
-            };
-            // Rows run southwards; `(north − y) / ph ∈ [0, rows)` is the half-open (south, north].
-            tap((g.north - src_y) / g.pixel_height, src_rows)
-        })
-        .collect();
-
+    let (row_taps, col_taps) = taps(grid, z, col0, row0, cols, rows);
     // Validity of every source cell, looked up once.
-    let src_valid: Option<Array2<bool>> =
-        if grid.valid.is_some() || grid.data.iter().any(|v| !v.is_finite()) {
-            Some(Array2::from_shape_fn((src_rows, src_cols), |(r, c)| {
-                grid.is_valid(r, c)
-            }))
-        } else {
-            None
-        };
+    let src_valid = source_validity(grid);
     let data = &grid.data;
 
     for (j, row_tap) in row_taps.iter().enumerate() {
@@ -180,6 +138,102 @@ pub fn mercator_window_from_grid(
         }
     }
     (values, mask)
+}
+
+/// The source taps of the rows and of the columns of a window (see
+/// [`mercator_window_from_grid`]): `(row_taps, col_taps)`, `None` outside the source.
+fn taps(
+    grid: &Grid,
+    z: u8,
+    col0: i64,
+    row0: i64,
+    cols: usize,
+    rows: usize,
+) -> (Vec<Option<Tap>>, Vec<Option<Tap>>) {
+    let (src_rows, src_cols) = grid.data.dim();
+    let g = &grid.georef;
+    let m = pixel_size_m(z);
+    let half_world = PI * MERCATOR_RADIUS_M;
+
+    // Mercator metres of the centre of global column px / row py.
+    let centre_x = |px: i64| -half_world + (px as f64 + 0.5) * m;
+    let centre_y = |py: i64| half_world - (py as f64 + 0.5) * m;
+
+    let col_taps: Vec<Option<Tap>> = (0..cols)
+        .map(|i| {
+            let x = centre_x(col0.saturating_add(i as i64));
+            match g.crs {
+                Crs::Epsg4326 => {
+                    let lon = mercator_to_lonlat(x, 0.0).0;
+                    wrapped_tap(lon, g.west, g.pixel_width, src_cols, 360.0)
+                }
+                Crs::Epsg3857 => wrapped_tap(x, g.west, g.pixel_width, src_cols, 2.0 * half_world),
+                // Projected grids are reprojected onto EPSG:4326 before they are resampled
+                // (`World::new`); never sampled here.
+                Crs::Projected(_) => None,
+            }
+        })
+        .collect();
+    let row_taps: Vec<Option<Tap>> = (0..rows)
+        .map(|j| {
+            let y = centre_y(row0.saturating_add(j as i64));
+            let src_y = match g.crs {
+                Crs::Epsg4326 => mercator_to_lonlat(0.0, y).1,
+                Crs::Epsg3857 => y,
+                Crs::Projected(_) => f64::NAN,
+            };
+            // Rows run southwards; `(north − y) / ph ∈ [0, rows)` is the half-open (south, north].
+            tap((g.north - src_y) / g.pixel_height, src_rows)
+        })
+        .collect();
+
+    (row_taps, col_taps)
+}
+
+/// Validity of every cell of `grid` (masked or NaN cells are invalid), or `None` when every
+/// cell is valid. Worth computing once per grid: it reads the whole grid.
+pub fn source_validity(grid: &Grid) -> Option<Array2<bool>> {
+    let (src_rows, src_cols) = grid.data.dim();
+    if grid.valid.is_some() || grid.data.iter().any(|v| !v.is_finite()) {
+        Some(Array2::from_shape_fn((src_rows, src_cols), |(r, c)| {
+            grid.is_valid(r, c)
+        }))
+    } else {
+        None
+    }
+}
+
+/// The mask alone of [`mercator_window_from_grid`] over the same window, given the grid's
+/// [`source_validity`] (computed once by the caller): `true` where the pixel centre lies inside
+/// the source and at least one of its four bilinear neighbours is valid.
+pub fn mercator_mask_from_grid(
+    grid: &Grid,
+    valid: Option<&Array2<bool>>,
+    z: u8,
+    col0: i64,
+    row0: i64,
+    cols: usize,
+    rows: usize,
+) -> Array2<bool> {
+    let mut mask = Array2::from_elem((rows, cols), false);
+    let (src_rows, src_cols) = grid.data.dim();
+    if src_rows == 0 || src_cols == 0 || rows == 0 || cols == 0 {
+        return mask;
+    }
+    let (row_taps, col_taps) = taps(grid, z, col0, row0, cols, rows);
+    for (j, row_tap) in row_taps.iter().enumerate() {
+        let Some(ry) = row_tap else { continue };
+        for (i, col_tap) in col_taps.iter().enumerate() {
+            let Some(cx) = col_tap else { continue };
+            mask[[j, i]] = match valid {
+                None => true,
+                Some(v) => {
+                    v[[ry.i0, cx.i0]] || v[[ry.i0, cx.i1]] || v[[ry.i1, cx.i0]] || v[[ry.i1, cx.i1]]
+                }
+            };
+        }
+    }
+    mask
 }
 
 #[cfg(test)]
@@ -339,6 +393,38 @@ mod tests {
         let (v, mask) = mercator_window_from_grid(&empty, z, 0, 0, 8, 8, -5.0);
         assert!(mask.iter().all(|&b| !b));
         assert!(v.iter().all(|&x| x == -5.0));
+    }
+
+    #[test]
+    fn mask_alone_matches_the_resampler_mask_around_holes_and_edges() {
+        // A grid with a NaN block and a masked cell, sampled at several zooms over windows that
+        // reach outside it: the mask-only lookup gives the resampler's own mask pixel by pixel.
+        let (mut grid, _) = linear_grid();
+        for r in 30..40 {
+            for c in 40..47 {
+                grid.data[[r, c]] = f32::NAN;
+            }
+        }
+        let mut valid = Array2::from_elem(grid.data.dim(), true);
+        valid[[5, 5]] = false;
+        grid.valid = Some(valid);
+        let v = source_validity(&grid);
+        assert!(v.is_some());
+        for z in [7u8, 9, 11] {
+            let (x0, y0) = crate::mercator::lonlat_to_global_pixel(z, 69.9, 44.1);
+            let (x1, y1) = crate::mercator::lonlat_to_global_pixel(z, 75.1, 39.9);
+            let (c0, r0) = (x0.floor() as i64, y0.floor() as i64);
+            let (cols, rows) = ((x1 - x0) as usize + 2, (y1 - y0) as usize + 2);
+            let (_, want) = mercator_window_from_grid(&grid, z, c0, r0, cols, rows, 0.0);
+            let got = mercator_mask_from_grid(&grid, v.as_ref(), z, c0, r0, cols, rows);
+            assert_eq!(got, want, "zoom {z}");
+            assert!(
+                want.iter().any(|&b| b) && want.iter().any(|&b| !b),
+                "zoom {z}"
+            );
+        }
+        // A grid with every cell valid needs no validity grid.
+        assert!(source_validity(&linear_grid().0).is_none());
     }
 
     #[test]

@@ -173,13 +173,14 @@ fn species_colours(w: &World) -> serde_json::Value {
 }
 
 /// The layers every world serves.
-pub const LAYERS: [&str; 6] = [
+pub const LAYERS: [&str; 7] = [
     "elevation",
     "hillshade",
     "vegetation",
     "drainage",
     "splat",
     "color",
+    "water",
 ];
 
 /// What the TileJSON of a landscape layer says about its tiles.
@@ -201,9 +202,14 @@ fn layer_description(w: &World, layer: &str) -> Option<String> {
         "splat" => Some(format!(
             "Material weights, RGBA = materials 4n..4n+3 of ?set=n (all sets of a pixel sum to \
              255). Materials: {}",
-            names(l.materials.iter().map(|m| m.name.as_str()).collect())
+            names(crate::materials::splat_names(l))
         )),
         "color" => Some("Baked material colour shaded by the hillshade".into()),
+        "water" => Some(
+            "Sea and lakes: .exr float32 channels depth (m, 0 where dry) and surface (m, NaN \
+             where dry); .png water colour by depth, alpha by depth (transparent where dry)"
+                .into(),
+        ),
         _ => None,
     }
 }
@@ -258,7 +264,8 @@ pub fn tilejson_in(w: &World, base: &str, layer: &str, format: &str) -> Option<T
 }
 
 /// The MapLibre style of world `w` served at `base`: the world's raster-dem as 3D terrain and
-/// hillshade, and the colour map, vegetation overlay and drainage overlay as raster layers
+/// hillshade, and the colour map, the water above it, vegetation overlay and drainage overlay as
+/// raster layers
 /// switchable through `layout.visibility` (colour and drainage visible, vegetation not).
 pub fn style_json(w: &World, base: &str) -> serde_json::Value {
     let n = w.name();
@@ -294,12 +301,15 @@ pub fn style_json(w: &World, base: &str) -> serde_json::Value {
             "color": raster(tiles("color", "png")),
             "vegetation": raster(format!("{}?style=overlay", tiles("vegetation", "png"))),
             "drainage": raster(tiles("drainage", "png")),
+            "water": raster(tiles("water", "png")),
         },
         "terrain": { "source": "terrain", "exaggeration": 1.0 },
         "layers": [
             { "id": "background", "type": "background",
               "paint": { "background-color": "#d8d4c8" } },
             { "id": "color", "type": "raster", "source": "color",
+              "layout": { "visibility": "visible" } },
+            { "id": "water", "type": "raster", "source": "water",
               "layout": { "visibility": "visible" } },
             { "id": "vegetation", "type": "raster", "source": "vegetation",
               "layout": { "visibility": "none" }, "paint": { "raster-opacity": 0.8 } },

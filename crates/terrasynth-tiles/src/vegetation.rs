@@ -9,6 +9,8 @@
 //!   the served terrain moves the density of each parent pixel among its 2×2 children in
 //!   proportion to their suitability (the parent's density is kept), and the viability step fades
 //!   it on marginal ground and zeroes it where the niche excludes it.
+//! - **Coverage and water**: density is 0 outside the base's coverage ([`crate::coverage`]) and
+//!   under water ([`crate::water`]).
 //! - **Overviews** (`z < z_b`): the 2×2 box average of the children (densities average).
 
 use std::sync::Arc;
@@ -21,11 +23,13 @@ use terrasynth_core::synth::{Amplifier, Field, Window};
 
 use crate::base_layers::{cut, WholeWorld};
 use crate::chain::Chain;
+use crate::coverage::mask_in_place;
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
 use crate::terrain::Terrain;
+use crate::water::{zero_under_water, WaterLevels, DEPTH};
 
 /// The pyramids vegetation is computed from.
 #[derive(Clone, Copy, Debug)]
@@ -36,6 +40,8 @@ pub struct Inputs<'a> {
     pub drainage: &'a DrainageLevels,
     /// Whole-world layers (the native zoom).
     pub whole: &'a WholeWorld,
+    /// Water levels (vegetation is 0 under water).
+    pub water: &'a WaterLevels,
 }
 
 /// The vegetation levels of a world.
@@ -105,10 +111,17 @@ impl VegetationLevels {
         let species = &self.landscape.species;
         if z == zb {
             let base = inputs.whole.get(inputs.elevation)?;
+            let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
+            let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
             return Ok(base
                 .vegetation
                 .iter()
-                .map(|a| cut(a, base.window, w, 0.0))
+                .map(|a| {
+                    let mut d = cut(a, base.window, w, 0.0);
+                    mask_in_place(&mut d, &coverage);
+                    zero_under_water(&mut d, depth);
+                    d
+                })
                 .collect());
         }
         if z < zb {
@@ -149,9 +162,11 @@ impl VegetationLevels {
         let terrain = Terrain::of(inputs.elevation, z, w)?;
         let area = inputs
             .drainage
-            .tile(inputs.elevation, inputs.whole, z, tx, ty)?;
+            .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)?;
         let wet = wetness(&area);
         let viability = self.landscape.viability;
+        let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
+        let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
         let mut out = Vec::with_capacity(species.len());
         for (k, sp) in species.iter().enumerate() {
             let mut d = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
@@ -170,6 +185,8 @@ impl VegetationLevels {
             ndarray::Zip::from(&mut d)
                 .and(&suit)
                 .for_each(|v, &s| *v *= vegetation::viability_gate(s, viability));
+            mask_in_place(&mut d, &coverage);
+            zero_under_water(&mut d, depth);
             out.push(d);
         }
         Ok(out)

@@ -1,7 +1,10 @@
 //! A world ready to serve: its [`Extent`] on the tile planes and the pyramids of its layers —
-//! elevation, drainage and vegetation, plus splat weights and colour inputs computed per tile —
-//! built from its [`WorldParts`]. The world's cache budget is shared by its whole-world layers
-//! (first) and its level caches: half for elevation, a quarter each for vegetation and drainage.
+//! elevation (with the base's coverage), drainage, vegetation and water, plus splat weights and
+//! colour inputs computed per tile — built from its [`WorldParts`]. The world's cache budget is
+//! shared by its whole-world layers (first) and its level caches: half for elevation, a
+//! sixty-fourth for the coverage overviews, a quarter each for vegetation and drainage (less an
+//! eighth of the budget between them for water, in worlds that may have water, and drainage
+//! less the coverage's share).
 //! The ridges and valleys of the base (PPA) are computed once, on first use, outside that
 //! budget.
 
@@ -12,7 +15,8 @@ use ndarray::Array2;
 
 use terrasynth_core::analysis::ppa::{self, Features, PpaParams};
 use terrasynth_core::dictionary::MatchWeights;
-use terrasynth_core::landscape::LandscapeConfig;
+use terrasynth_core::landscape::water::default_sea_level;
+use terrasynth_core::landscape::{LandscapeConfig, WaterConfig};
 use terrasynth_core::raster::reproject::to_geographic;
 use terrasynth_core::raster::{CellSizes, Crs, Georef, Grid};
 use terrasynth_core::synth::{check_bands, Amplifier, Levers, Window, ZoomBand};
@@ -25,6 +29,7 @@ use crate::error::TileError;
 use crate::extent::{relief_center, Extent};
 use crate::materials;
 use crate::vegetation::{Inputs, VegetationLevels};
+use crate::water::{WaterLevels, DEPTH, LEVEL};
 
 /// Everything a world is made of, resolved: its base, dictionary and settings.
 #[derive(Clone, Debug)]
@@ -59,6 +64,9 @@ pub struct WorldParts {
     pub center: Option<[f64; 2]>,
     /// Atoms per primitive of the amplifier ([`Levers::sparsity`]); `None`: the dictionary's.
     pub sparsity: Option<u32>,
+    /// Sea level and lake settings ([`crate::water`]); a `sea_level_m` of `None` takes the
+    /// default rule ([`default_sea_level`]: 0 m for a base with cells below 0, else no sea).
+    pub water: WaterConfig,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -119,6 +127,8 @@ pub struct World {
     whole: WholeWorld,
     drainage: DrainageLevels,
     vegetation: VegetationLevels,
+    water: WaterLevels,
+    water_config: WaterConfig,
     /// The base's ridges and valleys, once computed (the lock coalesces concurrent first uses).
     features: Mutex<Option<Arc<Features>>>,
 }
@@ -189,6 +199,10 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
         // Absent before sparse codes: worlds without the setting keep their fingerprint.
         h.update(format!("sparsity={s}|"));
     }
+    if parts.water != WaterConfig::default() {
+        // Absent before water: worlds with the default settings keep their fingerprint.
+        h.update(format!("water={:?}|", parts.water));
+    }
     for v in parts.base.data.iter() {
         h.update(v.to_bits().to_le_bytes());
     }
@@ -206,6 +220,10 @@ impl World {
         }
         let extent = Extent::of_base(&parts.base, parts.z_base, parts.max_zoom)?;
         parts.landscape.validate()?;
+        if parts.water.sea_level_m.is_none() {
+            parts.water.sea_level_m = default_sea_level(parts.base.min_max().map(|m| m.0));
+        }
+        parts.water.validate()?;
         let levers = Levers {
             sparsity: parts.sparsity.unwrap_or(0),
             ..Levers::default()
@@ -224,14 +242,19 @@ impl World {
         let fingerprint = fingerprint(&parts, extent.z_base);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
+        let wet = parts.water.may_have_water();
         let base_bytes = base_layer_bytes(
             extent.world_window(extent.z_base),
             parts.landscape.species.len(),
+            wet,
         );
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
             .max(parts.cache_bytes / 4);
+        // Water tiles hold three planes: an eighth of the budget, for worlds that may have water
+        // (a dry world's water tiles are one shared dry tile, never cached).
+        let water_bytes = if wet { budget / 8 } else { 0 };
         let center = parts
             .center
             .or_else(|| relief_center(&parts.base))
@@ -261,10 +284,18 @@ impl World {
                 extent,
                 amplifiers,
                 budget / 2,
+                budget / 64,
+                parts.water.clone(),
             ),
             whole: WholeWorld::new(landscape.clone()),
-            drainage: DrainageLevels::new(budget / 4),
-            vegetation: VegetationLevels::new(landscape.clone(), layer_amplifiers, budget / 4),
+            drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
+            vegetation: VegetationLevels::new(
+                landscape.clone(),
+                layer_amplifiers,
+                budget / 4 - water_bytes / 2,
+            ),
+            water: WaterLevels::new(water_bytes),
+            water_config: parts.water,
             landscape,
             features: Mutex::new(None),
         })
@@ -275,6 +306,7 @@ impl World {
             elevation: &self.elevation,
             drainage: &self.drainage,
             whole: &self.whole,
+            water: &self.water,
         }
     }
 
@@ -408,6 +440,7 @@ impl World {
                 &e.cache().stats().cancelled,
                 &self.drainage.cache().stats().cancelled,
                 &self.vegetation.cache().stats().cancelled,
+                &self.water.cache().stats().cancelled,
             ]
             .iter()
             .map(|c| c.load(Ordering::Relaxed))
@@ -423,8 +456,10 @@ impl World {
     /// Bytes currently held by the level-tile caches (elevation, vegetation, drainage).
     pub fn cache_bytes(&self) -> u64 {
         self.elevation.cache().weighted_size()
+            + self.elevation.coverage_cache().weighted_size()
             + self.vegetation.cache().weighted_size()
             + self.drainage.cache().weighted_size()
+            + self.water.cache().weighted_size()
     }
 
     /// Checks that tile `(z, x, y)` exists and intersects the world: `OutOfRange`, `ZoomTooDeep`
@@ -451,6 +486,17 @@ impl World {
         self.elevation.tile(z, i64::from(x), i64::from(y))
     }
 
+    /// The coverage tile `(z, x, y)`: the fraction (0–1) of each pixel that the base's valid data
+    /// covers ([`crate::coverage`]); overlays are transparent where it is 0.
+    pub fn coverage_tile(&self, z: u8, x: u32, y: u32) -> Result<Arc<Array2<f32>>, TileError> {
+        self.elevation.coverage_tile(z, i64::from(x), i64::from(y))
+    }
+
+    /// Coverage over an arbitrary window of zoom `z`.
+    pub fn coverage_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
+        self.elevation.coverage_window(z, w)
+    }
+
     /// An arbitrary window of zoom `z`'s pixel plane, assembled from level tiles. `z` may exceed
     /// `max_zoom` by one (for 512-px tiles at the deepest zoom).
     pub fn elevation_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
@@ -462,21 +508,56 @@ impl World {
     /// needs them; a request arriving meanwhile waits for the same computation. Returns the bytes
     /// they hold.
     pub fn prepare_landscape(&self) -> Result<u64, TileError> {
-        self.whole
-            .get(&self.elevation)
-            .map(|b| base_layer_bytes(b.window, b.vegetation.len()))
+        self.whole.get(&self.elevation).map(|b| {
+            base_layer_bytes(
+                b.window,
+                b.vegetation.len(),
+                self.water_config.may_have_water(),
+            )
+        })
     }
 
     /// The drainage tile `(z, x, y)`: upstream area in m² (after [`World::check_tile`]).
     pub fn drainage_tile(&self, z: u8, x: u32, y: u32) -> Result<Arc<Array2<f32>>, TileError> {
         self.check_tile(z, x, y)?;
-        self.drainage
-            .tile(&self.elevation, &self.whole, z, i64::from(x), i64::from(y))
+        self.drainage.tile(
+            &self.elevation,
+            &self.whole,
+            &self.water,
+            z,
+            i64::from(x),
+            i64::from(y),
+        )
     }
 
     /// Drainage over an arbitrary window of zoom `z`, assembled from drainage tiles.
     pub fn drainage_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
-        self.drainage.window(&self.elevation, &self.whole, z, w)
+        self.drainage
+            .window(&self.elevation, &self.whole, &self.water, z, w)
+    }
+
+    /// The world's water settings.
+    pub fn water_config(&self) -> &WaterConfig {
+        &self.water_config
+    }
+
+    /// The water tile `(z, x, y)`: depth (m, 0 where dry) and surface level (m, NaN where dry).
+    pub fn water_tile(
+        &self,
+        z: u8,
+        x: u32,
+        y: u32,
+    ) -> Result<(Array2<f32>, Array2<f32>), TileError> {
+        self.check_tile(z, x, y)?;
+        let t = self
+            .water
+            .tile(&self.elevation, z, i64::from(x), i64::from(y))?;
+        Ok((t[DEPTH].clone(), t[LEVEL].clone()))
+    }
+
+    /// Water depth over an arbitrary window of zoom `z` (m, 0 where dry).
+    pub fn water_depth_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {
+        self.water.depth_window(&self.elevation, z, w)
     }
 
     /// The vegetation tile `(z, x, y)`: one density grid (0–1) per species.

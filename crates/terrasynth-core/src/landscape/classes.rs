@@ -1,0 +1,262 @@
+//! Land-cover classes (issue #15; procedural texturing paper §IV.D): an RGB image (a satellite
+//! image on the base grid) classified into named classes by per-class HSV ranges, and the
+//! `class.<name>` weight of a class (1 inside, 0 outside, smoothed over a distance).
+//!
+//! Hue is in degrees `[0, 360)`, saturation and value in `[0, 1]` (the usual hexcone model). A
+//! hue range whose minimum exceeds its maximum wraps through 0° (reds: `[330, 20]`). A pixel
+//! takes the first class (in the definition's order) whose three ranges all hold it, else none.
+
+use ndarray::Array2;
+use serde::{Deserialize, Serialize};
+
+use super::LandscapeError;
+
+/// The HSV ranges of one class, each `[min, max]` inclusive.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HsvRanges {
+    /// Hue, degrees in `[0, 360]`; `min > max` wraps through 0°.
+    pub h: [f32; 2],
+    /// Saturation, `[0, 1]`.
+    pub s: [f32; 2],
+    /// Value (brightness), `[0, 1]`.
+    pub v: [f32; 2],
+}
+
+/// A named class of an RGB classification.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HsvClass {
+    /// The class name (`class.<name>` in materials and species).
+    pub name: String,
+    /// Its HSV ranges.
+    pub hsv: HsvRanges,
+}
+
+/// Checks class names (non-empty, unique, letters, digits, `_` or `-`) and HSV ranges (hue in
+/// `[0, 360]`, saturation and value in `[0, 1]` with `min ≤ max`); the error names the class
+/// and the range.
+pub fn validate_classes(classes: &[HsvClass]) -> Result<(), LandscapeError> {
+    let bad = |m: String| Err(LandscapeError::Invalid(m));
+    for (i, c) in classes.iter().enumerate() {
+        if c.name.is_empty()
+            || !c
+                .name
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
+        {
+            return bad(format!(
+                "classes[{i}].name `{}` must be letters, digits, `_` or `-`",
+                c.name
+            ));
+        }
+        if classes[..i].iter().any(|o| o.name == c.name) {
+            return bad(format!("classes[{i}].name `{}` is repeated", c.name));
+        }
+        let in_range =
+            |r: [f32; 2], hi: f32| r.iter().all(|&x| x.is_finite() && (0.0..=hi).contains(&x));
+        if !in_range(c.hsv.h, 360.0) {
+            return bad(format!(
+                "classes[{i}] ({}): hsv.h must lie within 0–360 degrees",
+                c.name
+            ));
+        }
+        for (what, r) in [("s", c.hsv.s), ("v", c.hsv.v)] {
+            if !in_range(r, 1.0) || r[0] > r[1] {
+                return bad(format!(
+                    "classes[{i}] ({}): hsv.{what} must be [min, max] within 0–1",
+                    c.name
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Hue (degrees, `[0, 360)`, 0 for greys), saturation and value of an 8-bit RGB colour.
+pub fn rgb_to_hsv(rgb: [u8; 3]) -> [f32; 3] {
+    let [r, g, b] = rgb.map(|x| f32::from(x) / 255.0);
+    let max = r.max(g).max(b);
+    let min = r.min(g).min(b);
+    let d = max - min;
+    let s = if max > 0.0 { d / max } else { 0.0 };
+    let h = if d == 0.0 {
+        0.0
+    } else if max == r {
+        60.0 * ((g - b) / d).rem_euclid(6.0)
+    } else if max == g {
+        60.0 * ((b - r) / d + 2.0)
+    } else {
+        60.0 * ((r - g) / d + 4.0)
+    };
+    [h.rem_euclid(360.0), s, max]
+}
+
+fn holds(r: [f32; 2], x: f32) -> bool {
+    r[0] <= x && x <= r[1]
+}
+
+fn hue_holds(r: [f32; 2], h: f32) -> bool {
+    if r[0] <= r[1] {
+        holds(r, h)
+    } else {
+        h >= r[0] || h <= r[1]
+    }
+}
+
+/// The class of one colour: the index of the first class whose ranges hold it.
+pub fn class_of(classes: &[HsvClass], rgb: [u8; 3]) -> Option<usize> {
+    let [h, s, v] = rgb_to_hsv(rgb);
+    classes
+        .iter()
+        .position(|c| hue_holds(c.hsv.h, h) && holds(c.hsv.s, s) && holds(c.hsv.v, v))
+}
+
+/// Classifies an RGB image: per pixel, 1 + the index of its class, 0 where no class holds it.
+pub fn classify_rgb(classes: &[HsvClass], rgb: &Array2<[u8; 3]>) -> Array2<u16> {
+    rgb.mapv(|p| class_of(classes, p).map_or(0, |k| k as u16 + 1))
+}
+
+/// The weight of class `code` (a value of a class raster): 1 on its cells, 0 elsewhere, then
+/// box-averaged over `radius` cells each way (separable, edges clamped), so it falls from 1 to 0
+/// over `2·radius + 1` cells across a class border. `radius = 0`: the sharp indicator.
+pub fn class_weight(classes: &Array2<u16>, code: u16, radius: usize) -> Array2<f32> {
+    let ind = classes.mapv(|c| if c == code { 1.0f32 } else { 0.0 });
+    if radius == 0 {
+        return ind;
+    }
+    let blur_rows = box_along(&ind, radius, true);
+    box_along(&blur_rows, radius, false)
+}
+
+/// Box average along columns (`vertical`) or rows, window `2·radius + 1`, edges clamped.
+fn box_along(a: &Array2<f32>, radius: usize, vertical: bool) -> Array2<f32> {
+    let (rows, cols) = a.dim();
+    let n = 2 * radius + 1;
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let mut sum = 0.0f64;
+        for k in 0..n {
+            let off = k as i64 - radius as i64;
+            let (rr, cc) = if vertical {
+                ((r as i64 + off).clamp(0, rows as i64 - 1) as usize, c)
+            } else {
+                (r, (c as i64 + off).clamp(0, cols as i64 - 1) as usize)
+            };
+            sum += f64::from(a[[rr, cc]]);
+        }
+        (sum / n as f64) as f32
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn class(name: &str, h: [f32; 2], s: [f32; 2], v: [f32; 2]) -> HsvClass {
+        HsvClass {
+            name: name.into(),
+            hsv: HsvRanges { h, s, v },
+        }
+    }
+
+    /// Water (blues), forest (dark greens), snow (bright greys), and red roofs across 0°.
+    fn classes() -> Vec<HsvClass> {
+        vec![
+            class("water", [180.0, 250.0], [0.3, 1.0], [0.1, 1.0]),
+            class("forest", [70.0, 170.0], [0.2, 1.0], [0.0, 0.6]),
+            class("snow", [0.0, 360.0], [0.0, 0.1], [0.85, 1.0]),
+            class("roofs", [340.0, 20.0], [0.5, 1.0], [0.3, 1.0]),
+        ]
+    }
+
+    #[test]
+    fn hsv_of_known_colours() {
+        // Worked by hand: pure primaries, a grey, and (0, 51, 102): max = b = 0.4, d = 0.4,
+        // h = 60·((0 − 0.2)/0.4 + 4) = 210°, s = 1, v = 0.4.
+        assert_eq!(rgb_to_hsv([255, 0, 0]), [0.0, 1.0, 1.0]);
+        assert_eq!(rgb_to_hsv([0, 255, 0]), [120.0, 1.0, 1.0]);
+        assert_eq!(rgb_to_hsv([0, 0, 255]), [240.0, 1.0, 1.0]);
+        assert_eq!(rgb_to_hsv([128, 128, 128])[..2], [0.0, 0.0]);
+        let [h, s, v] = rgb_to_hsv([0, 51, 102]);
+        assert!((h - 210.0).abs() < 1e-4 && (s - 1.0).abs() < 1e-6 && (v - 0.4).abs() < 1e-6);
+        // (255, 0, 51): max = r, (g − b)/d = −0.2 → −0.2 mod 6 = 5.8 → 348°.
+        assert!((rgb_to_hsv([255, 0, 51])[0] - 348.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_small_image_gets_the_classes_worked_by_hand() {
+        // 3 × 3 pixels; expected class per pixel worked by hand from the HSV values:
+        //  (0, 51, 102)    h 210 s 1    v 0.4  → water
+        //  (30, 100, 40)   h 129 s 0.7  v 0.39 → forest
+        //  (250, 250, 252) h 240 s 0.008 v 0.99 → snow (water needs s ≥ 0.3)
+        //  (200, 30, 40)   h 356 s 0.85 v 0.78 → roofs (wrapping hue range)
+        //  (200, 60, 20)   h 13  s 0.9  v 0.78 → roofs
+        //  (120, 120, 120) h 0   s 0    v 0.47 → none (snow needs v ≥ 0.85)
+        //  (60, 200, 60)   h 120 s 0.7  v 0.78 → none (forest needs v ≤ 0.6)
+        //  (20, 200, 200)  h 180 s 0.9  v 0.78 → water (inclusive minimum)
+        //  (220, 200, 40)  h 53  s 0.82 v 0.86 → none
+        let px = [
+            [0, 51, 102],
+            [30, 100, 40],
+            [250, 250, 252],
+            [200, 30, 40],
+            [200, 60, 20],
+            [120, 120, 120],
+            [60, 200, 60],
+            [20, 200, 200],
+            [220, 200, 40],
+        ];
+        let img = Array2::from_shape_fn((3, 3), |(r, c)| px[3 * r + c]);
+        let got = classify_rgb(&classes(), &img);
+        let want = ndarray::arr2(&[[1u16, 2, 3], [4, 4, 0], [0, 1, 0]]);
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn bad_ranges_and_names_are_refused_by_name() {
+        let mut c = classes();
+        assert!(validate_classes(&c).is_ok());
+        c[1].hsv.s = [0.5, 1.2];
+        let e = validate_classes(&c).unwrap_err().to_string();
+        assert!(e.contains("forest") && e.contains("hsv.s"), "{e}");
+        let mut c = classes();
+        c[0].hsv.h = [-10.0, 200.0];
+        let e = validate_classes(&c).unwrap_err().to_string();
+        assert!(e.contains("water") && e.contains("hsv.h"), "{e}");
+        let mut c = classes();
+        c[2].hsv.v = [0.9, 0.8];
+        assert!(validate_classes(&c)
+            .unwrap_err()
+            .to_string()
+            .contains("hsv.v"));
+        let mut c = classes();
+        c[3].name = "water".into();
+        assert!(validate_classes(&c)
+            .unwrap_err()
+            .to_string()
+            .contains("repeated"));
+        let mut c = classes();
+        c[3].name = "class.x".into();
+        assert!(validate_classes(&c).is_err());
+    }
+
+    #[test]
+    fn class_weight_is_one_inside_zero_far_outside_and_ramps_over_the_distance() {
+        // Left half class 1, right half class 2, 12 columns.
+        let raster = Array2::from_shape_fn((4, 12), |(_, c)| if c < 6 { 1u16 } else { 2 });
+        let sharp = class_weight(&raster, 1, 0);
+        assert_eq!(sharp[[0, 0]], 1.0);
+        assert_eq!(sharp[[0, 6]], 0.0);
+        let w = class_weight(&raster, 1, 2);
+        // Five-cell box: deep inside 1, far outside 0, across the border 4/5, 3/5, 2/5, 1/5.
+        assert_eq!(w[[1, 0]], 1.0);
+        assert_eq!(w[[1, 3]], 1.0);
+        assert_eq!(w[[1, 11]], 0.0);
+        for (c, want) in [(4, 0.8f32), (5, 0.6), (6, 0.4), (7, 0.2), (8, 0.0)] {
+            assert!((w[[2, c]] - want).abs() < 1e-6, "col {c}: {}", w[[2, c]]);
+        }
+        // Complementary classes sum to 1 everywhere.
+        let w2 = class_weight(&raster, 2, 2);
+        assert!(w.iter().zip(&w2).all(|(a, b)| (a + b - 1.0).abs() < 1e-6));
+    }
+}
