@@ -163,6 +163,12 @@ struct Search {
     /// Neighbour offsets in the framed box and their length costs.
     steps: [(isize, f64); 8],
     heap: BinaryHeap<Item>,
+    /// Row and column of every framed-box cell (no division in the search loop).
+    rc: Vec<(u32, u32)>,
+    /// Offset in `z` of every framed-box cell from the box's first cell, for rows `offs_cols`
+    /// wide (rebuilt when the width changes).
+    offs: Vec<usize>,
+    offs_cols: usize,
 }
 
 impl Search {
@@ -194,6 +200,11 @@ impl Search {
             generation: 0,
             steps,
             heap: BinaryHeap::new(),
+            rc: (0..side * side)
+                .map(|c| ((c / side) as u32, (c % side) as u32))
+                .collect(),
+            offs: Vec::new(),
+            offs_cols: usize::MAX,
         }
     }
 
@@ -224,8 +235,17 @@ impl Search {
         self.heap.clear();
         // Framed-box cell (br, bc) is cell (r − radius − 1 + br, c − radius − 1 + bc) of z (the
         // frame may lie one cell outside z; it is never read).
+        if self.offs_cols != cols {
+            self.offs = self
+                .rc
+                .iter()
+                .map(|&(br, bc)| br as usize * cols + bc as usize)
+                .collect();
+            self.offs_cols = cols;
+        }
         let base = (r * cols + c).wrapping_sub((radius + 1) * cols + radius + 1);
-        let at = |cell: usize| z[base.wrapping_add((cell / side) * cols + cell % side)];
+        let offs = &self.offs;
+        let at = |cell: usize| z[base.wrapping_add(offs[cell])];
         let zq = z[r * cols + c];
         let start = (radius + 1) * side + radius + 1;
         self.dist[start] = 0.0;
@@ -251,7 +271,8 @@ impl Search {
                 if stamp == gen || stamp == u32::MAX {
                     continue;
                 }
-                let (nr, nc) = (n / side, n % side);
+                let (nr, nc) = self.rc[n];
+                let (nr, nc) = (nr as usize, nc as usize);
                 if nr < lo || nr > hi || nc < lo || nc > hi {
                     continue;
                 }

@@ -357,6 +357,10 @@ pub struct Matcher {
     slope_range: (f32, f32),
 }
 
+/// Atoms per chunk of the scans of [`Matcher::best_match`] (a chunk with nothing to do is skipped
+/// after one vectorised test).
+const SCAN_CHUNK: usize = 16;
+
 /// Atoms per block of the dot-product kernel: the block's accumulators stay in registers.
 pub const ATOM_BLOCK: usize = 32;
 
@@ -472,6 +476,7 @@ impl Matcher {
     /// Index of the best atom for `q` and its elevation dot product `P_h · D_h,k`.
     /// Identical to [`best_match_naive`]. The query must have the right shape
     /// ([`Matcher::check_query`]); a wrong-length elevation is treated as zero-padded/truncated.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn best_match(&self, q: &Query, scratch: &mut MatchScratch) -> (usize, f32) {
         let n = self.dict.n_atoms;
         let dots = &mut scratch.dots;
@@ -483,14 +488,23 @@ impl Matcher {
         dots.truncate(n);
         let s = self.sigmas(q);
         let w = &self.weights;
-        // The best elevation term alone gives a first full score; an atom can only beat it if its
-        // elevation term plus every other weight (each term ≤ 1) reaches it.
+        // The first index of the largest dot product. Chunks in which no value beats the best
+        // at the chunk's start are skipped whole: the best only grows, so the plain loop would
+        // not have moved in them either.
         let mut best = 0usize;
-        for (i, &v) in dots.iter().enumerate() {
-            if v > dots[best] {
-                best = i;
+        for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
+            let top = dots[best];
+            if !chunk.iter().fold(false, |any, &v| any | (v > top)) {
+                continue;
+            }
+            for (k, &v) in chunk.iter().enumerate() {
+                if v > dots[best] {
+                    best = c * SCAN_CHUNK + k;
+                }
             }
         }
+        // The best elevation term alone gives a first full score; an atom can only beat it if its
+        // elevation term plus every other weight (each term ≤ 1) reaches it.
         let mut best_score = combine(
             w,
             &self.dict,
@@ -503,27 +517,37 @@ impl Matcher {
         );
         let rest = w.rest() + PRUNE_SLACK;
         let first = best;
-        for (i, &dot_i) in dots.iter().enumerate() {
-            if i == first {
+        let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
+        for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
+            // A chunk whose bounds all lie below the best score so far is skipped whole (the
+            // best score only grows, so the per-atom test below would skip each of them).
+            let floor = best_score;
+            if !chunk
+                .iter()
+                // `!(b < floor)`, not `b >= floor`: a NaN bound is not skipped, as below.
+                .fold(false, |any, &d| any | !(bound(d) < floor))
+            {
                 continue;
             }
-            let bound = w.elevation * (0.5 * (1.0 + dot_i)) + rest;
-            if bound < best_score {
-                continue;
-            }
-            let sc = combine(
-                w,
-                &self.dict,
-                &self.prepared,
-                q,
-                s,
-                i,
-                dot_i,
-                &mut scratch.class,
-            );
-            if sc > best_score || (sc == best_score && i < best) {
-                best_score = sc;
-                best = i;
+            for (k, &dot_i) in chunk.iter().enumerate() {
+                let i = c * SCAN_CHUNK + k;
+                if i == first || bound(dot_i) < best_score {
+                    continue;
+                }
+                let sc = combine(
+                    w,
+                    &self.dict,
+                    &self.prepared,
+                    q,
+                    s,
+                    i,
+                    dot_i,
+                    &mut scratch.class,
+                );
+                if sc > best_score || (sc == best_score && i < best) {
+                    best_score = sc;
+                    best = i;
+                }
             }
         }
         (best, dots[best])
