@@ -33,6 +33,7 @@ mod cli;
 mod contours;
 mod e2e;
 mod gradient_cli;
+mod gradient_world;
 mod hardening;
 mod instances;
 mod openapi;
