@@ -53,12 +53,10 @@ pub struct GradientAmplifier {
     with_layers: bool,
 }
 
-/// Scratch of one block: the reconstruction inputs, detail planes and the block's heights.
+/// Scratch of one block: the reconstruction inputs and the block's heights.
 #[derive(Default)]
 struct BlockScratch {
     inputs: Vec<f32>,
-    dx: Vec<f32>,
-    dy: Vec<f32>,
     out: Vec<f32>,
 }
 
@@ -142,44 +140,62 @@ impl GradientAmplifier {
         )
     }
 
-    /// Adds the detail gradients of every tile of both layers overlapping block `(X0, Y0)` into
-    /// `dx` / `dy` (`T²`, zeroed by the caller).
-    fn add_detail(&self, p: &ParentPlane<'_>, bx: i64, by: i64, dx: &mut [f32], dy: &mut [f32]) {
+    /// Adds the detail gradients of every tile of both layers overlapping the rectangle of
+    /// `cols` × `dx.len() / cols` child pixels at `(x0, y0)` into `dx` / `dy` (row-major, zeroed
+    /// by the caller). A pixel gets its layer-0 tile's value, then its layer-1 tile's.
+    fn add_detail(
+        &self,
+        p: &ParentPlane<'_>,
+        (x0, y0): (i64, i64),
+        cols: usize,
+        dx: &mut [f32],
+        dy: &mut [f32],
+    ) {
         let params = &self.set.params;
         let t = self.t();
         let tu = params.tile;
         let alts = params.alternatives as u64;
+        let (w, h) = (cols as i64, (dx.len() / cols.max(1)) as i64);
+        if w == 0 || h == 0 {
+            return;
+        }
         for layer in 0..2i64 {
             let o = layer * t / 2;
-            let (i0, i1) = ((bx - o).div_euclid(t), (bx + t - 1 - o).div_euclid(t));
-            let (j0, j1) = ((by - o).div_euclid(t), (by + t - 1 - o).div_euclid(t));
+            let (i0, i1) = ((x0 - o).div_euclid(t), (x0 + w - 1 - o).div_euclid(t));
+            let (j0, j1) = ((y0 - o).div_euclid(t), (y0 + h - 1 - o).div_euclid(t));
             for j in j0..=j1 {
                 for i in i0..=i1 {
-                    let (x0, y0) = (i * t + o, j * t + o);
-                    // The overlap of tile and block, in block-local coordinates.
-                    let (c0, c1) = ((x0 - bx).max(0), (x0 + t - bx).min(t));
-                    let (r0, r1) = ((y0 - by).max(0), (y0 + t - by).min(t));
+                    let (tx, ty) = (i * t + o, j * t + o);
+                    // The overlap of tile and rectangle, in rectangle coordinates.
+                    let (c0, c1) = ((tx - x0).max(0), (tx + t - x0).min(w));
+                    let (r0, r1) = ((ty - y0).max(0), (ty + t - y0).min(h));
                     for axis in [Axis::X, Axis::Y] {
-                        let (a, b, sigma) = tile_stats(p, &self.table, axis, x0, y0, tu);
+                        let (a, b, sigma) = tile_stats(p, &self.table, axis, tx, ty, tu);
                         let salt = (layer as u64) * 2 + axis as u64 + 1;
-                        let h = hash2(
+                        let hsh = hash2(
                             params.seed.wrapping_add(salt.wrapping_mul(0x9E37_79B9)),
                             i,
                             j,
                         );
-                        let alt = (h % alts) as usize;
+                        let alt = (hsh % alts) as usize;
                         let tile = self.set.tile(axis, a * params.colours + b, alt);
                         let scale = 0.5 * sigma;
                         for r in r0..r1 {
-                            let tr = (r + by - y0) as usize;
-                            for c in c0..c1 {
-                                let tc = (c + bx - x0) as usize;
-                                let v = tile[tr * tu + tc] * scale;
-                                let k = r as usize * tu + c as usize;
-                                match axis {
-                                    Axis::X => dx[k] += v * self.window[tc],
-                                    Axis::Y => dy[k] += v * self.window[tr],
+                            let tr = (r + y0 - ty) as usize;
+                            let trow = &tile[tr * tu..(tr + 1) * tu];
+                            let k0 = r as usize * cols;
+                            let tc0 = (c0 + x0 - tx) as usize;
+                            let n = (c1 - c0) as usize;
+                            let (dst, wts) = match axis {
+                                Axis::X => (&mut dx[k0 + c0 as usize..][..n], None),
+                                Axis::Y => {
+                                    (&mut dy[k0 + c0 as usize..][..n], Some(self.window[tr]))
                                 }
+                            };
+                            for (q, d) in dst.iter_mut().enumerate() {
+                                let tc = tc0 + q;
+                                let v = trow[tc] * scale;
+                                *d += v * wts.unwrap_or(self.window[tc]);
                             }
                         }
                     }
@@ -188,30 +204,62 @@ impl GradientAmplifier {
         }
     }
 
-    /// The heights of block `(bx, by)` of plane `p` into `s.out` (with detail when `detail`).
-    fn block(&self, p: &ParentPlane<'_>, bx: i64, by: i64, detail: bool, s: &mut BlockScratch) {
+    /// The target gradients (coarse plus, with `detail`, the tiles' detail) at every child pixel
+    /// of `region`: `gx` across the edge `x → x+1`, `gy` across `y → y+1`, row-major. Computed
+    /// in bands of `T` rows in parallel (each pixel's value does not depend on the band).
+    fn gradient_planes(
+        &self,
+        p: &ParentPlane<'_>,
+        region: Window,
+        detail: bool,
+    ) -> (Vec<f32>, Vec<f32>) {
+        let cols = region.cols;
+        let band = self.set.params.tile * cols.max(1);
+        let mut gx = vec![0.0f32; region.len()];
+        let mut gy = vec![0.0f32; region.len()];
+        gx.par_chunks_mut(band)
+            .zip(gy.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(b, (gx, gy))| {
+                let y0 = region.row0 + (b * self.set.params.tile) as i64;
+                if detail {
+                    self.add_detail(p, (region.col0, y0), cols, gx, gy);
+                }
+                for (r, (rx, ry)) in gx.chunks_mut(cols).zip(gy.chunks_mut(cols)).enumerate() {
+                    let y = y0 + r as i64;
+                    for (c, (vx, vy)) in rx.iter_mut().zip(ry.iter_mut()).enumerate() {
+                        let x = region.col0 + c as i64;
+                        *vx += coarse_gx(p, x, y);
+                        *vy += coarse_gy(p, x, y);
+                    }
+                }
+            });
+        (gx, gy)
+    }
+
+    /// The heights of block `(bx, by)` into `s.out`, from the gradient planes over `region`.
+    fn block(
+        &self,
+        p: &ParentPlane<'_>,
+        planes: (&[f32], &[f32], Window),
+        bx: i64,
+        by: i64,
+        s: &mut BlockScratch,
+    ) {
+        let (gx, gy, region) = planes;
         let tu = self.set.params.tile;
         let t = tu as i64;
-        let n = tu * tu;
-        s.dx.clear();
-        s.dx.resize(n, 0.0);
-        s.dy.clear();
-        s.dy.resize(n, 0.0);
-        if detail {
-            self.add_detail(p, bx, by, &mut s.dx, &mut s.dy);
-        }
+        let at = |x: i64, y: i64| {
+            ((y - region.row0) as usize) * region.cols + (x - region.col0) as usize
+        };
         s.inputs.clear();
         for r in 0..t {
-            for c in 0..t - 1 {
-                let k = (r * t + c) as usize;
-                s.inputs.push(coarse_gx(p, bx + c, by + r) + s.dx[k]);
-            }
+            let k = at(bx, by + r);
+            s.inputs.extend_from_slice(&gx[k..k + tu - 1]);
         }
         for r in 0..t - 1 {
-            for c in 0..t {
-                let k = (r * t + c) as usize;
-                s.inputs.push(coarse_gy(p, bx + c, by + r) + s.dy[k]);
-            }
+            let k = at(bx, by + r);
+            s.inputs.extend_from_slice(&gy[k..k + tu]);
         }
         for r in 0..t / 2 {
             for c in 0..t / 2 {
@@ -219,18 +267,36 @@ impl GradientAmplifier {
             }
         }
         debug_assert_eq!(s.inputs.len(), input_count(tu));
-        s.out.resize(n, 0.0);
+        s.out.resize(tu * tu, 0.0);
         self.recon.apply(&s.inputs, &mut s.out);
     }
 
-    /// Reconstructs window `out` of plane `p`: on each of the four staggered block lattices in
-    /// turn, block row by block row (in parallel; each block is independent), adding each
-    /// block's heights weighted by the lattices' blending weights ([`cell_weights`]). The
-    /// contributions of a pixel are summed in lattice order, whatever the thread count.
+    /// The region of the child plane the blocks of the four lattices covering `out` span.
+    fn block_region(&self, out: Window) -> Window {
+        let t = self.t();
+        let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+        for (ox, oy) in self.lattices() {
+            let (i0, i1, j0, j1) = self.blocks(out, ox, oy);
+            x0 = x0.min(i0 * t + ox);
+            x1 = x1.max(i1 * t + ox);
+            y0 = y0.min(j0 * t + oy);
+            y1 = y1.max(j1 * t + oy);
+        }
+        Window::from_bounds(x0, y0, x1, y1)
+    }
+
+    /// Reconstructs window `out` of plane `p`: the target gradients once over the blocks'
+    /// region, then on each of the four staggered block lattices in turn, block row by block
+    /// row (in parallel; each block is independent), adding each block's heights weighted by
+    /// the lattices' blending weights ([`cell_weights`]). The contributions of a pixel are
+    /// summed in lattice order, whatever the thread count.
     fn reconstruct(&self, p: &ParentPlane<'_>, out: Window, detail: bool) -> Array2<f32> {
         let t = self.t();
         let tu = self.set.params.tile;
         let cols = out.cols;
+        let region = self.block_region(out);
+        let (gx, gy) = self.gradient_planes(p, region, detail);
+        let planes = (&gx[..], &gy[..], region);
         let mut data = vec![0.0f32; out.len()];
         for (ox, oy) in self.lattices() {
             let (i0, i1, j0, j1) = self.blocks(out, ox, oy);
@@ -251,7 +317,7 @@ impl GradientAmplifier {
                     let by = j * t + oy;
                     for i in i0..i1 {
                         let bx = i * t + ox;
-                        self.block(p, bx, by, detail, s);
+                        self.block(p, planes, bx, by, s);
                         let c0 = bx.max(out.col0);
                         let c1 = (bx + t).min(out.col1());
                         for (rr, orow) in rows.chunks_mut(cols.max(1)).enumerate() {
