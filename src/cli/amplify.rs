@@ -11,8 +11,9 @@ use ndarray::Array2;
 use super::error::CliError;
 use terrasynth_core::dictionary::derive::derived_layers;
 use terrasynth_core::dictionary::format::read_dictionary;
-use terrasynth_core::dictionary::gradient_format::{read_gradient_tiles, MAGIC as GRADIENT_MAGIC};
-use terrasynth_core::dictionary::{Dictionary, GradientTileSet, MatchWeights};
+use terrasynth_core::dictionary::{
+    read_any, AnyDictionary, Dictionary, GradientTileSet, MatchWeights,
+};
 use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
 use terrasynth_core::synth::{
     amplify_chain, Amplifier, ClampedRaster, GradientAmplifier, Level, Levers, Window,
@@ -66,36 +67,14 @@ pub fn load_dictionary(path: &Path) -> Result<Dictionary, CliError> {
     )?)
 }
 
-/// A file given to `amplify --dictionary`: a dictionary or a gradient tile set.
-#[derive(Debug)]
-pub enum LoadedAmplifier {
-    /// A dictionary (`TSDICT` magic).
-    Dictionary(Dictionary),
-    /// A gradient tile set (`TSGRAD` magic).
-    Gradient(GradientTileSet),
-}
-
-/// Reads a dictionary or a gradient tile set, told apart by the file's magic.
-pub fn load_amplifier(path: &Path) -> Result<LoadedAmplifier, CliError> {
-    let io = |source| CliError::Io {
+/// Reads a dictionary or a gradient tile set, told apart by the file's magic
+/// ([`terrasynth_core::dictionary::read_any`]).
+pub fn load_amplifier(path: &Path) -> Result<AnyDictionary, CliError> {
+    let f = std::fs::File::open(path).map_err(|source| CliError::Io {
         path: path.display().to_string(),
         source,
-    };
-    let mut magic = [0u8; 8];
-    {
-        use std::io::Read;
-        let mut f = std::fs::File::open(path).map_err(io)?;
-        // A file shorter than the magic goes to the dictionary reader, which names the problem.
-        let _ = f.read_exact(&mut magic);
-    }
-    if magic == GRADIENT_MAGIC {
-        let f = std::fs::File::open(path).map_err(io)?;
-        return Ok(LoadedAmplifier::Gradient(read_gradient_tiles(
-            std::io::BufReader::new(f),
-            MAX_DICTIONARY_BYTES,
-        )?));
-    }
-    Ok(LoadedAmplifier::Dictionary(load_dictionary(path)?))
+    })?;
+    Ok(read_any(std::io::BufReader::new(f), MAX_DICTIONARY_BYTES)?)
 }
 
 /// Amplifies `grid` by `levels` gradient-domain levels; returns the elevation grid.
@@ -228,12 +207,10 @@ pub fn run(args: &AmplifyArgs) -> Result<AmplifySummary, CliError> {
         .elevation()
         .ok_or_else(|| CliError::Usage("the input has no elevation layer".into()))?;
     let (out, layers) = match loaded {
-        LoadedAmplifier::Dictionary(d) => {
-            amplify_grid_with(&Arc::new(d), &args.weights, &grid, args.levels, args.levers)?
+        AnyDictionary::Dictionary(d) => {
+            amplify_grid_with(&d, &args.weights, &grid, args.levels, args.levers)?
         }
-        LoadedAmplifier::Gradient(set) => {
-            amplify_grid_gradient(&Arc::new(set), &grid, args.levels)?
-        }
+        AnyDictionary::Gradient(set) => amplify_grid_gradient(&set, &grid, args.levels)?,
     };
     write_geotiff_file(&out, &args.output)?;
     let mut files = vec![args.output.display().to_string()];

@@ -4,12 +4,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ndarray::Array2;
-
 use super::error::CliError;
 use terrasynth_core::dictionary::gradient_format::{content_id, to_bytes};
-use terrasynth_core::dictionary::{build_gradient_tiles, GradientParams, PixelWindow};
-use terrasynth_core::raster::{embedded, read_raster_file, Grid, ReadLimits};
+use terrasynth_core::dictionary::{
+    build_gradient_tiles, exemplar_plane, GradientParams, PixelWindow,
+};
+use terrasynth_core::raster::{embedded, read_raster_file, ReadLimits};
 
 /// Arguments of `dictionary build --kind gradient`.
 #[derive(Clone, Debug, Default)]
@@ -39,24 +39,6 @@ pub struct GradientBuildSummary {
     pub bytes: usize,
 }
 
-/// An exemplar's elevation with invalid and excluded cells as NaN (the builder skips windows
-/// touching one).
-fn with_nan(grid: &Grid, exclude: &[PixelWindow]) -> Array2<f32> {
-    let excluded = |r: usize, c: usize| {
-        exclude.iter().any(|w| {
-            r.checked_sub(w.row).is_some_and(|d| d < w.height)
-                && c.checked_sub(w.col).is_some_and(|d| d < w.width)
-        })
-    };
-    Array2::from_shape_fn(grid.data.dim(), |(r, c)| {
-        if grid.is_valid(r, c) && !excluded(r, c) {
-            grid.data[[r, c]]
-        } else {
-            f32::NAN
-        }
-    })
-}
-
 /// Runs the build and writes the tile set to `output`.
 pub fn run(args: &GradientBuildArgs, output: &Path) -> Result<GradientBuildSummary, CliError> {
     let start = Instant::now();
@@ -70,14 +52,17 @@ pub fn run(args: &GradientBuildArgs, output: &Path) -> Result<GradientBuildSumma
     let limits = ReadLimits::default();
     let mut grids = Vec::new();
     if args.default_exemplar {
-        grids.push(with_nan(&embedded::default_exemplar()?, &args.exclude));
+        grids.push(exemplar_plane(
+            &embedded::default_exemplar()?,
+            &args.exclude,
+        ));
     }
     for path in &args.exemplars {
         let raster = read_raster_file(path, None, &limits)?;
         let grid = raster
             .elevation()
             .ok_or_else(|| CliError::Usage(format!("{}: no elevation layer", path.display())))?;
-        grids.push(with_nan(&grid, &args.exclude));
+        grids.push(exemplar_plane(&grid, &args.exclude));
     }
     let set = build_gradient_tiles(&grids, &args.params)?;
     let bytes = to_bytes(&set)?;

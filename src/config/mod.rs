@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use thiserror::Error;
 
-use terrasynth_core::dictionary::MatchWeights;
+use terrasynth_core::dictionary::{AmplifierKind, GradientParams, MatchWeights};
 use terrasynth_core::synth::{check_bands, ZoomBand};
 
 /// The embedded copy of `config/default.toml`.
@@ -212,6 +212,41 @@ pub struct DictionaryConfig {
     /// GeoTIFF path per exemplar (same order, same grid as the exemplar; `""` keeps the derived
     /// layer for that exemplar). Densities 0–1.
     pub vegetation_rasters: std::collections::BTreeMap<String, Vec<String>>,
+    /// The amplifier of these zooms: `"dictionary"` (the default: a dictionary of `atoms`
+    /// patches of side `patch`) or `"gradient"` (a gradient tile set of the same exemplars with
+    /// `tile`, `colours`, `alternatives`, `mixing` and `seed`; issue #20).
+    pub amplifier: AmplifierKind,
+    /// Gradient tile side in child pixels, a multiple of 4 in 4–16 (`amplifier = "gradient"`;
+    /// default 8).
+    pub tile: Option<usize>,
+    /// Edge colours per layer, 2–16 (`amplifier = "gradient"`; default 4).
+    pub colours: Option<usize>,
+    /// Alternatives per colour combination, 1–64 (`amplifier = "gradient"`; default 4).
+    pub alternatives: Option<usize>,
+    /// Exemplar mixing in `[0, 1]` (`amplifier = "gradient"`; default 0.25).
+    pub mixing: Option<f32>,
+}
+
+/// Keys of a dictionary table that only the dictionary amplifier uses.
+const DICTIONARY_ONLY_KEYS: [&str; 4] = ["atoms", "patch", "stride", "vegetation_rasters"];
+/// Keys of a dictionary table that only the gradient amplifier uses.
+const GRADIENT_ONLY_KEYS: [&str; 4] = ["tile", "colours", "alternatives", "mixing"];
+
+impl DictionaryConfig {
+    /// The gradient tile set parameters of a `amplifier = "gradient"` table (defaults for absent
+    /// keys; the table's `seed`), validated.
+    pub fn gradient_params(&self) -> Result<GradientParams, String> {
+        let d = GradientParams::default();
+        let p = GradientParams {
+            tile: self.tile.unwrap_or(d.tile),
+            colours: self.colours.unwrap_or(d.colours),
+            alternatives: self.alternatives.unwrap_or(d.alternatives),
+            mixing: self.mixing.unwrap_or(d.mixing),
+            seed: self.seed,
+        };
+        p.validate().map_err(|e| e.to_string())?;
+        Ok(p)
+    }
 }
 
 impl Default for DictionaryConfig {
@@ -224,6 +259,11 @@ impl Default for DictionaryConfig {
             seed: 1,
             zooms: None,
             vegetation_rasters: Default::default(),
+            amplifier: AmplifierKind::Dictionary,
+            tile: None,
+            colours: None,
+            alternatives: None,
+            mixing: None,
         }
     }
 }
@@ -343,6 +383,50 @@ fn check_dictionaries(w: &WorldConfig, text: &str, path: &str) -> Result<(), Con
         .map_err(|e| invalid(format!("dictionaries: {e}")))
 }
 
+/// Checks that each dictionary table of world file `path` gives only the keys of its
+/// `amplifier` (a gradient band with `atoms`, or a dictionary band with `tile`, is a mismatch)
+/// and that a gradient band's parameters are valid.
+fn check_amplifiers(w: &WorldConfig, text: &str, path: &str) -> Result<(), ConfigError> {
+    let table = text.parse::<toml::Table>().unwrap_or_default();
+    let raw: Vec<(String, Option<&toml::Table>, &DictionaryConfig)> = if w.dictionaries.is_empty() {
+        vec![(
+            "dictionary".to_string(),
+            table.get("dictionary").and_then(toml::Value::as_table),
+            &w.dictionary,
+        )]
+    } else {
+        let list = table.get("dictionaries").and_then(toml::Value::as_array);
+        w.dictionaries
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let t = list.and_then(|l| l.get(i)).and_then(toml::Value::as_table);
+                (format!("dictionaries[{i}]"), t, d)
+            })
+            .collect()
+    };
+    for (name, t, d) in raw {
+        let (foreign, needs): (&[&str], &str) = match d.amplifier {
+            AmplifierKind::Dictionary => (&GRADIENT_ONLY_KEYS, "amplifier = \"gradient\""),
+            AmplifierKind::Gradient => (&DICTIONARY_ONLY_KEYS, "amplifier = \"dictionary\""),
+        };
+        if let Some(key) = foreign
+            .iter()
+            .find(|k| t.is_some_and(|t| t.contains_key(**k)))
+        {
+            return Err(ConfigError::Invalid(format!(
+                "{path}: {name}.{key} does not apply to amplifier = \"{}\" (it belongs to {needs})",
+                d.amplifier
+            )));
+        }
+        if d.amplifier == AmplifierKind::Gradient {
+            d.gradient_params()
+                .map_err(|e| ConfigError::Invalid(format!("{path}: {name}: {e}")))?;
+        }
+    }
+    Ok(())
+}
+
 /// The whole configuration.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
@@ -389,6 +473,7 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
         .validate()
         .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_dictionaries(&w, text, path)?;
+    check_amplifiers(&w, text, path)?;
     Ok(w)
 }
 
@@ -729,6 +814,68 @@ mod tests {
                 matches!(load(Some(&p), Vec::new()), Err(ConfigError::Invalid(m)) if m.contains(key)),
                 "{line}"
             );
+        }
+    }
+
+    #[test]
+    fn gradient_bands_parse_and_mismatched_keys_are_named() {
+        let head = "name = \"w\"\nbase = \"b.tif\"\nz_base = 8\nmax_zoom = 16\n";
+        let w = parse_world(
+            &format!(
+                "{head}[[dictionaries]]\nzooms = \"9-14\"\namplifier = \"gradient\"\ntile = 12\n\
+                 colours = 6\nalternatives = 3\nmixing = 0.5\n\
+                 [[dictionaries]]\nzooms = \"15-16\"\natoms = 32\n"
+            ),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        let bands = w.dictionary_bands();
+        assert_eq!(bands[0].1.amplifier, AmplifierKind::Gradient);
+        assert_eq!(bands[1].1.amplifier, AmplifierKind::Dictionary);
+        let p = bands[0].1.gradient_params().unwrap();
+        assert_eq!(
+            (p.tile, p.colours, p.alternatives, p.mixing, p.seed),
+            (12, 6, 3, 0.5, 1)
+        );
+        // A single [dictionary] with the gradient amplifier and the defaults.
+        let one = parse_world(
+            &format!("{head}[dictionary]\namplifier = \"gradient\"\n"),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        assert_eq!(one.dictionary.gradient_params().unwrap().tile, 8);
+        for (table, needle) in [
+            (
+                "[dictionary]\namplifier = \"gradient\"\natoms = 64\n",
+                "dictionary.atoms does not apply to amplifier = \"gradient\"",
+            ),
+            (
+                "[dictionary]\ntile = 8\n",
+                "dictionary.tile does not apply to amplifier = \"dictionary\"",
+            ),
+            (
+                "[[dictionaries]]\nzooms = \"9-16\"\namplifier = \"gradient\"\npatch = 8\n",
+                "dictionaries[0].patch does not apply",
+            ),
+            (
+                "[dictionary]\namplifier = \"gradient\"\ntile = 6\n",
+                "dictionary: invalid dictionary parameters: tile 6 must be a multiple of 4",
+            ),
+            (
+                "[dictionary]\namplifier = \"gradient\"\nmixing = 1.5\n",
+                "mixing 1.5 must lie in [0, 1]",
+            ),
+            (
+                "[dictionary]\namplifier = \"poisson\"\n",
+                "unknown variant `poisson`",
+            ),
+        ] {
+            let e = parse_world(&format!("{head}{table}"), "w.toml", Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle) && e.contains("w.toml"), "{table}: {e}");
         }
     }
 

@@ -13,7 +13,10 @@ use std::time::Instant;
 use sha2::{Digest, Sha256};
 
 use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
-use terrasynth_core::dictionary::{Dictionary, ExemplarOptions, Learning};
+use terrasynth_core::dictionary::{
+    build_gradient_tiles, exemplar_plane, AmplifierKind, AnyDictionary, Dictionary,
+    ExemplarOptions, GradientTileSet, Learning,
+};
 use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
 use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
@@ -44,10 +47,29 @@ fn load_raster(spec: &str, dir: &Path) -> Result<Grid, String> {
     read_geotiff_file(&path, &ReadLimits::default()).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// A stable name for the dictionary a world's settings `d` produce (one of its bands).
+/// A stable name for the dictionary (or gradient tile set) a world's settings `d` produce (one of
+/// its bands).
 fn dictionary_alias(world: &WorldConfig, d: &DictionaryConfig) -> String {
     let mut h = Sha256::new();
-    h.update(format!(
+    if d.amplifier == AmplifierKind::Gradient {
+        h.update(format!(
+            "gradient-v1|{:?}|{:?}|{}",
+            d.exemplars,
+            d.gradient_params(),
+            world.dir.display()
+        ));
+    } else {
+        h.update(dictionary_alias_text(world, d));
+    }
+    let digest = h.finalize();
+    let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    format!("world-{}-{hex}", world.name)
+}
+
+/// What the alias of a dictionary band hashes (unchanged since v2, so stores keep their
+/// dictionaries).
+fn dictionary_alias_text(world: &WorldConfig, d: &DictionaryConfig) -> String {
+    format!(
         "v2|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
         d.exemplars,
         d.atoms,
@@ -59,10 +81,21 @@ fn dictionary_alias(world: &WorldConfig, d: &DictionaryConfig) -> String {
         world.landscape.species,
         world.landscape.clustering,
         d.vegetation_rasters,
-    ));
-    let digest = h.finalize();
-    let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
-    format!("world-{}-{hex}", world.name)
+    )
+}
+
+/// Builds the gradient tile set of a world's `amplifier = "gradient"` band from its exemplars.
+fn build_gradient(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<GradientTileSet, String> {
+    let params = cfg.gradient_params()?;
+    let t = Instant::now();
+    let mut planes = Vec::with_capacity(cfg.exemplars.len());
+    for spec in &cfg.exemplars {
+        planes.push(exemplar_plane(&load_raster(spec, &world.dir)?, &[]));
+    }
+    let set = build_gradient_tiles(&planes, &params)
+        .map_err(|e| format!("building the gradient tile set: {e}"))?;
+    tracing::info!(world = %world.name, seconds = t.elapsed().as_secs_f64(), "gradient tile set: built");
+    Ok(set)
 }
 
 fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dictionary, String> {
@@ -144,36 +177,47 @@ fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dicti
     Ok(d)
 }
 
-/// The dictionary of `world`'s settings `cfg` from the store, building and storing it when
-/// absent (or unreadable).
+/// The dictionary (or gradient tile set, by the band's `amplifier`) of `world`'s settings `cfg`
+/// from the store, building and storing it when absent (or unreadable, or of the other kind).
 fn world_dictionary(
     store: &Store,
     world: &WorldConfig,
     cfg: &DictionaryConfig,
-) -> Result<(Arc<Dictionary>, String), StartupError> {
+) -> Result<(AnyDictionary, String), StartupError> {
     let alias = dictionary_alias(world, cfg);
+    let what = cfg.amplifier.file_noun();
     if let Some(id) = store.alias(&alias)? {
-        match store.get_dictionary(&id) {
-            Ok(Some(d)) => {
-                tracing::info!(world = %world.name, id = %id, "dictionary: loaded from the store");
-                return Ok((Arc::new(d), id));
+        match store.get_any_dictionary(&id) {
+            Ok(Some(d)) if d.kind() == cfg.amplifier => {
+                tracing::info!(world = %world.name, id = %id, "{what}: loaded from the store");
+                return Ok((d, id));
+            }
+            Ok(Some(_)) => {
+                tracing::warn!(world = %world.name, id = %id, "{what}: alias points at the other kind; rebuilding")
             }
             Ok(None) => {
-                tracing::warn!(world = %world.name, id = %id, "dictionary: alias points at a missing object; rebuilding")
+                tracing::warn!(world = %world.name, id = %id, "{what}: alias points at a missing object; rebuilding")
             }
             Err(e) => {
-                tracing::warn!(world = %world.name, error = %e, "dictionary: stored object unusable; rebuilding");
+                tracing::warn!(world = %world.name, error = %e, "{what}: stored object unusable; rebuilding");
                 // Out of the way, so that the rebuilt dictionary can take its place.
                 store.quarantine(Stored::Dictionary, &id, &e)?;
             }
         }
     }
-    tracing::info!(world = %world.name, "dictionary: not in the store; building it");
-    let d = build_dictionary(world, cfg).map_err(world_error(world))?;
-    let id = store.put_dictionary(&d)?;
+    tracing::info!(world = %world.name, "{what}: not in the store; building it");
+    let d: AnyDictionary = match cfg.amplifier {
+        AmplifierKind::Dictionary => {
+            Arc::new(build_dictionary(world, cfg).map_err(world_error(world))?).into()
+        }
+        AmplifierKind::Gradient => {
+            Arc::new(build_gradient(world, cfg).map_err(world_error(world))?).into()
+        }
+    };
+    let id = store.put_any_dictionary(&d)?;
     store.set_alias(&alias, &id)?;
-    tracing::info!(world = %world.name, id = %id, "dictionary: stored");
-    Ok((Arc::new(d), id))
+    tracing::info!(world = %world.name, id = %id, "{what}: stored");
+    Ok((d, id))
 }
 
 /// Why `world`'s cache share cannot hold its whole-world layers and leave its level caches their

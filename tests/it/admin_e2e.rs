@@ -18,7 +18,7 @@ use terrasynth_test_support::tile_of;
 
 use crate::support::{start, Server};
 
-const TOKEN: &str = "e2e-token";
+pub(crate) const TOKEN: &str = "e2e-token";
 
 /// A configuration without configured worlds (so no default dictionary is built at start).
 fn config_file(dir: &Path) -> String {
@@ -36,14 +36,14 @@ fn serve(dir: &Path, store: &Path) -> Server {
     )
 }
 
-fn tiff(grid: &Grid) -> Vec<u8> {
+pub(crate) fn tiff(grid: &Grid) -> Vec<u8> {
     let mut out = std::io::Cursor::new(Vec::new());
     terrasynth_core::raster::write_geotiff(grid, &mut out).unwrap();
     out.into_inner()
 }
 
 /// A window of the committed Tien Shan grid (the Kyrgyz Ala-Too), box-down-sampled `down` times.
-fn tienshan_crop(col: usize, row: usize, side: usize, down: usize) -> Grid {
+pub(crate) fn tienshan_crop(col: usize, row: usize, side: usize, down: usize) -> Grid {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/data/tienshan_west_gebco15s.tif");
     let g = read_geotiff_file(&path, &ReadLimits::default()).unwrap();
     let crop = g
@@ -67,7 +67,7 @@ fn tienshan_crop(col: usize, row: usize, side: usize, down: usize) -> Grid {
     Grid::new(data, georef)
 }
 
-fn upload(server: &Server, name: &str, bytes: &[u8]) -> String {
+pub(crate) fn upload(server: &Server, name: &str, bytes: &[u8]) -> String {
     let (st, body) = post(
         server,
         &format!("/admin/exemplars?name={name}"),
@@ -79,13 +79,13 @@ fn upload(server: &Server, name: &str, bytes: &[u8]) -> String {
     json(&body)["id"].as_str().unwrap().to_string()
 }
 
-fn job(server: &Server, id: &str) -> serde_json::Value {
+pub(crate) fn job(server: &Server, id: &str) -> serde_json::Value {
     let (st, body) = get(server, &format!("/admin/jobs/{id}"), Some(TOKEN));
     assert_eq!(st, 200, "{}", String::from_utf8_lossy(&body));
     json(&body)
 }
 
-fn wait_until(
+pub(crate) fn wait_until(
     server: &Server,
     id: &str,
     done: impl Fn(&serde_json::Value) -> bool,

@@ -37,6 +37,7 @@ mod contours;
 mod coverage;
 mod e2e;
 mod gradient_cli;
+mod gradient_world;
 mod hardening;
 mod instances;
 mod openapi;

@@ -366,7 +366,7 @@ fn mosaic(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Array2<f32> {
 }
 
 /// Mean |step| across the tile borders of a 3×3 mosaic, and between interior neighbours.
-fn border_and_interior_steps(m: &Array2<f32>) -> (f64, f64) {
+pub(crate) fn border_and_interior_steps(m: &Array2<f32>) -> (f64, f64) {
     let (mut border, mut nb, mut inner, mut ni) = (0.0, 0, 0.0, 0);
     for r in 0..m.nrows() {
         for c in 0..m.ncols() - 1 {

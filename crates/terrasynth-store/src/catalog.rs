@@ -8,7 +8,7 @@ use std::sync::{Mutex, MutexGuard};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use terrasynth_core::dictionary::Dictionary;
+use terrasynth_core::dictionary::{AmplifierKind, AnyDictionary, Dictionary};
 
 use crate::error::StoreError;
 use crate::exemplar::{self, ExemplarHeader};
@@ -98,6 +98,59 @@ pub struct DictionaryInfo {
     pub cell_m: f64,
     /// Extra layers carried by the atoms.
     pub layers: Vec<String>,
+    /// `dictionary` (patch atoms, the dictionary amplifier) or `gradient` (a gradient tile set,
+    /// the gradient amplifier). For a gradient tile set `atoms` counts its tiles, `patch` is the
+    /// tile side, `stride` half of it and `learning` is `gradient`.
+    #[schema(value_type = String, example = "dictionary")]
+    pub kind: AmplifierKind,
+    /// The parameters of a gradient tile set (absent for a dictionary).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gradient: Option<GradientInfo>,
+}
+
+/// The paper's parameters of a stored gradient tile set.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+pub struct GradientInfo {
+    /// Tile side in child pixels.
+    pub tile: usize,
+    /// Edge colours per layer.
+    pub colours: usize,
+    /// Alternatives per colour combination.
+    pub alternatives: usize,
+    /// Exemplar mixing in `[0, 1]`.
+    pub mixing: f32,
+    /// Colour combinations (per axis) the exemplars offered tiles for, of `colours²`.
+    pub combinations_found: usize,
+}
+
+/// The description of dictionary or gradient tile set `id` (alias `name`).
+pub fn any_dictionary_info(id: &str, name: Option<String>, d: &AnyDictionary) -> DictionaryInfo {
+    match d {
+        AnyDictionary::Dictionary(d) => dictionary_info(id, name, d),
+        AnyDictionary::Gradient(g) => {
+            let p = &g.params;
+            let combos = p.combinations();
+            DictionaryInfo {
+                id: id.to_string(),
+                name,
+                atoms: 2 * combos * p.alternatives,
+                patch: p.tile,
+                stride: p.tile / 2,
+                learning: "gradient".into(),
+                seed: p.seed,
+                cell_m: 0.0,
+                layers: Vec::new(),
+                kind: AmplifierKind::Gradient,
+                gradient: Some(GradientInfo {
+                    tile: p.tile,
+                    colours: p.colours,
+                    alternatives: p.alternatives,
+                    mixing: p.mixing,
+                    combinations_found: g.found.iter().take(combos).filter(|&&n| n > 0).count(),
+                }),
+            }
+        }
+    }
 }
 
 /// The description of dictionary `id` (alias `name`).
@@ -112,6 +165,8 @@ pub fn dictionary_info(id: &str, name: Option<String>, d: &Dictionary) -> Dictio
         seed: d.params.seed,
         cell_m: d.params.cell_m,
         layers: d.layers.iter().map(|l| l.name.clone()).collect(),
+        kind: AmplifierKind::Dictionary,
+        gradient: None,
     }
 }
 
@@ -151,9 +206,9 @@ impl Catalog {
             }
         }
         for id in store.dictionary_ids()? {
-            match store.get_dictionary(&id) {
+            match store.get_any_dictionary(&id) {
                 Ok(Some(d)) => {
-                    let info = dictionary_info(&id, names.get(&id).cloned(), &d);
+                    let info = any_dictionary_info(&id, names.get(&id).cloned(), &d);
                     lock(&catalog.dictionaries).insert(id, info);
                 }
                 Ok(None) => {}
@@ -163,16 +218,18 @@ impl Catalog {
         Ok(catalog)
     }
 
-    /// Stores dictionary `d` under alias `dictionary.{name}` and records it; its id.
+    /// Stores dictionary or gradient tile set `d` under alias `dictionary.{name}` and records
+    /// it; its id.
     pub fn add_dictionary(
         &self,
         store: &Store,
         name: &str,
-        d: Dictionary,
+        d: AnyDictionary,
     ) -> Result<String, StoreError> {
-        let id = store.put_dictionary(&d)?;
+        let id = store.put_any_dictionary(&d)?;
         store.set_alias(&format!("dictionary.{name}"), &id)?;
-        lock(&self.dictionaries).insert(id.clone(), dictionary_info(&id, Some(name.into()), &d));
+        lock(&self.dictionaries)
+            .insert(id.clone(), any_dictionary_info(&id, Some(name.into()), &d));
         Ok(id)
     }
 

@@ -15,7 +15,10 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use terrasynth_core::dictionary::build::{build_cancellable, BuildOptions, Exemplar};
-use terrasynth_core::dictionary::{DictionaryError, ExemplarOptions, LayerKind, Learning};
+use terrasynth_core::dictionary::{
+    build_gradient_tiles, exemplar_plane, AmplifierKind, DictionaryError, ExemplarOptions,
+    GradientParams, LayerKind, Learning,
+};
 use terrasynth_core::landscape::{exemplar_vegetation, LandscapeConfig, Species};
 use terrasynth_core::raster::Grid;
 use terrasynth_core::synth::sketch::geometry::Sketch;
@@ -87,6 +90,39 @@ pub struct DictionaryRequest {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<Object>>)]
     pub species: Option<Vec<Species>>,
+    /// What to build: `dictionary` (patch atoms for the dictionary amplifier, the default) or
+    /// `gradient` (a gradient tile set for the gradient amplifier, issue #20: takes `tile`,
+    /// `colours`, `alternatives`, `mixing` and `seed`; the dictionary parameters `atoms`,
+    /// `patch`, `stride`, `learning`, `weights` and `species` are refused).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(example = "gradient")]
+    pub kind: Option<String>,
+    /// Gradient tile side in child pixels, a multiple of 4 in 4–16 (`kind: gradient`). Default
+    /// 8.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tile: Option<usize>,
+    /// Edge colours per layer, 2–16 (`kind: gradient`). Default 4.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub colours: Option<usize>,
+    /// Alternatives per colour combination, 1–64 (`kind: gradient`). Default 4.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alternatives: Option<usize>,
+    /// Exemplar mixing in `[0, 1]` (`kind: gradient`). Default 0.25.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mixing: Option<f32>,
+}
+
+impl DictionaryRequest {
+    /// What the request builds (`kind`, default `dictionary`), or why `kind` is invalid.
+    pub fn build_kind(&self) -> Result<AmplifierKind, ServiceError> {
+        match self.kind.as_deref() {
+            None | Some("dictionary") => Ok(AmplifierKind::Dictionary),
+            Some("gradient") => Ok(AmplifierKind::Gradient),
+            Some(k) => Err(ServiceError::Invalid(format!(
+                "kind `{k}` must be `dictionary` or `gradient`"
+            ))),
+        }
+    }
 }
 
 /// What a job was asked to do.
@@ -130,7 +166,8 @@ pub struct Job {
     /// Progress 0–1.
     pub progress: f64,
     /// Current stage (`queued`, `reading`, then for dictionaries `patches`, `learning`, for
-    /// sketches `features`, `filling`, `seams`; `storing`, `done`).
+    /// gradient tile sets `tiles`, for sketches `features`, `filling`, `seams`; `storing`,
+    /// `done`).
     pub stage: String,
     /// Why it failed.
     pub error: Option<String>,
@@ -290,6 +327,9 @@ impl Jobs {
             };
             self.persist(&id);
             let outcome = pool.install(|| match &request {
+                JobRequest::Dictionary(r) if r.kind.as_deref() == Some("gradient") => {
+                    self.run_gradient(&id, r, &cancel)
+                }
                 JobRequest::Dictionary(r) => self.run(&id, r, &cancel),
                 JobRequest::Sketch(r) => self.run_sketch(&id, r, &cancel),
             });
@@ -422,7 +462,47 @@ impl Jobs {
         let dict_id = self
             .inner
             .catalog
-            .add_dictionary(&self.inner.store, &request.name, d)
+            .add_dictionary(&self.inner.store, &request.name, Arc::new(d).into())
+            .map_err(BuildFailure::Store)?;
+        Ok(dict_id)
+    }
+
+    /// Builds and stores the gradient tile set of `request` (`kind: gradient`); its id.
+    fn run_gradient(
+        &self,
+        id: &str,
+        request: &DictionaryRequest,
+        cancel: &AtomicBool,
+    ) -> Result<String, BuildFailure> {
+        let params = gradient_params(request).map_err(|e| BuildFailure::Invalid(e.to_string()))?;
+        let mut planes = Vec::with_capacity(request.exemplars.len());
+        for (i, ex_id) in request.exemplars.iter().enumerate() {
+            let payload = self
+                .inner
+                .store
+                .get_object(ObjectKind::Exemplar, ex_id)?
+                .ok_or_else(|| BuildFailure::Invalid(format!("exemplar {ex_id} is gone")))?;
+            let (_, raster) = exemplar::decode(&payload)?;
+            let grid = raster.elevation().ok_or_else(|| {
+                BuildFailure::Invalid(format!("exemplar {ex_id} has no elevation"))
+            })?;
+            planes.push(exemplar_plane(&grid, &[]));
+            if cancel.load(Ordering::Relaxed) {
+                return Err(BuildFailure::Cancelled);
+            }
+            let n = request.exemplars.len() as f64;
+            self.set_progress(id, "reading", 0.3 * (i as f64 + 1.0) / n);
+        }
+        self.set_progress(id, "tiles", 0.3);
+        let set = build_gradient_tiles(&planes, &params)?;
+        self.set_progress(id, "storing", 0.97);
+        if cancel.load(Ordering::Relaxed) {
+            return Err(BuildFailure::Cancelled);
+        }
+        let dict_id = self
+            .inner
+            .catalog
+            .add_dictionary(&self.inner.store, &request.name, Arc::new(set).into())
             .map_err(BuildFailure::Store)?;
         Ok(dict_id)
     }
@@ -594,8 +674,50 @@ impl Jobs {
     }
 }
 
-/// The build options of a request (defaults for absent fields), validated.
+/// The gradient tile set parameters of a `kind: gradient` request (defaults for absent fields),
+/// validated, naming the first bad field; the dictionary-only fields are refused.
+pub fn gradient_params(r: &DictionaryRequest) -> Result<GradientParams, ServiceError> {
+    let dictionary_only = [
+        ("atoms", r.atoms.is_some()),
+        ("patch", r.patch.is_some()),
+        ("stride", r.stride.is_some()),
+        ("learning", r.learning.is_some()),
+        ("weights", r.weights.is_some()),
+        ("species", r.species.is_some()),
+    ];
+    if let Some((field, _)) = dictionary_only.iter().find(|(_, given)| *given) {
+        return Err(ServiceError::Invalid(format!(
+            "{field} is a dictionary parameter; a gradient tile set (kind `gradient`) takes \
+             tile, colours, alternatives, mixing and seed"
+        )));
+    }
+    let d = GradientParams::default();
+    let p = GradientParams {
+        tile: r.tile.unwrap_or(d.tile),
+        colours: r.colours.unwrap_or(d.colours),
+        alternatives: r.alternatives.unwrap_or(d.alternatives),
+        mixing: r.mixing.unwrap_or(d.mixing),
+        seed: r.seed.unwrap_or(d.seed),
+    };
+    p.validate()
+        .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+    Ok(p)
+}
+
+/// The build options of a request (defaults for absent fields), validated; the gradient-only
+/// fields are refused.
 pub fn build_options(r: &DictionaryRequest) -> Result<BuildOptions, ServiceError> {
+    let gradient_only = [
+        ("tile", r.tile.is_some()),
+        ("colours", r.colours.is_some()),
+        ("alternatives", r.alternatives.is_some()),
+        ("mixing", r.mixing.is_some()),
+    ];
+    if let Some((field, _)) = gradient_only.iter().find(|(_, given)| *given) {
+        return Err(ServiceError::Invalid(format!(
+            "{field} is a gradient tile set parameter: give \"kind\": \"gradient\" to build one"
+        )));
+    }
     let d = BuildOptions::default();
     let learning = match &r.learning {
         None => d.learning,

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use terrasynth_core::dictionary::Dictionary;
+use terrasynth_core::dictionary::{AmplifierKind, AnyDictionary};
 use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_core::names::is_content_id;
 use terrasynth_core::raster::{Grid, LayeredRaster};
@@ -27,7 +27,8 @@ use crate::catalog::{exemplar_info, lock, Catalog, DictionaryInfo, ExemplarInfo}
 use crate::error::{ServiceError, StoreError};
 use crate::exemplar;
 use crate::jobs::{
-    build_options, DictionaryRequest, Job, JobRequest, JobSettings, Jobs, SketchJob,
+    build_options, gradient_params, DictionaryRequest, Job, JobRequest, JobSettings, Jobs,
+    SketchJob,
 };
 use crate::sketch::SketchRequest;
 use crate::store::{ObjectKind, Store, Stored};
@@ -63,8 +64,8 @@ pub struct ResolvedWorld {
 pub struct ResolvedDictionary {
     /// Its zooms (`None`: every amplified zoom).
     pub zooms: Option<ZoomBand>,
-    /// The dictionary.
-    pub dictionary: Arc<Dictionary>,
+    /// The dictionary, or the gradient tile set (of the kind the band's amplifier names).
+    pub dictionary: AnyDictionary,
     /// Its content id.
     pub id: String,
 }
@@ -292,6 +293,12 @@ impl Catalogue {
         if let Some(e) = request.exemplars.iter().find(|e| !self.ensure_checked(e)) {
             return Err(ServiceError::Invalid(format!("unknown exemplar `{e}`")));
         }
+        if request.build_kind()? == AmplifierKind::Gradient {
+            gradient_params(&request)?;
+            let job = self.jobs.submit(request)?;
+            tracing::info!(job = %job.id, "gradient tile set job queued");
+            return Ok(job);
+        }
         build_options(&request)?;
         if let Some(weights) = &request.weights {
             let known = self.weight_names(&request);
@@ -473,14 +480,16 @@ impl Catalogue {
             .elevation()
             .ok_or_else(|| ServiceError::Invalid("the base has no elevation".into()))?;
         let mut dictionaries = Vec::with_capacity(bands.len());
-        for (zooms, id) in bands {
+        for (i, ((zooms, id), entry)) in bands.into_iter().zip(&def.dictionaries).enumerate() {
             let dictionary = self
                 .store
-                .get_dictionary(id)?
-                .ok_or_else(|| ServiceError::Invalid(format!("unknown dictionary `{id}`")))?;
+                .get_any_dictionary(id)?
+                .ok_or_else(|| ServiceError::Invalid(format!("unknown dictionary `{id}`")))?
+                .expect(entry.amplifier(), &format!("dictionaries[{i}] `{id}`"))
+                .map_err(ServiceError::Invalid)?;
             dictionaries.push(ResolvedDictionary {
                 zooms,
-                dictionary: Arc::new(dictionary),
+                dictionary,
                 id: id.to_string(),
             });
         }

@@ -7,13 +7,14 @@
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use terrasynth_core::dictionary::{self, Dictionary, DictionaryError};
+use terrasynth_core::dictionary::{self, AnyDictionary, Dictionary, DictionaryError};
 
 use crate::error::StoreError;
 use crate::object;
 
-/// Largest dictionary the store reads, bytes.
+/// Largest dictionary (or gradient tile set) the store reads, bytes.
 pub const MAX_DICTIONARY_BYTES: u64 = 4 << 30;
 
 /// Prefix of temporary files of in-progress writes.
@@ -277,7 +278,7 @@ impl Store {
     /// that an object of any size is checked in constant memory; `Ok(false)` when it is absent.
     pub fn verify(&self, kind: Stored, id: &str) -> Result<bool, StoreError> {
         match kind {
-            Stored::Dictionary => self.get_dictionary(id).map(|d| d.is_some()),
+            Stored::Dictionary => self.get_any_dictionary(id).map(|d| d.is_some()),
             Stored::Exemplar | Stored::World => {
                 let okind = if kind == Stored::World {
                     ObjectKind::World
@@ -426,27 +427,58 @@ impl Store {
     pub fn put_dictionary(&self, d: &Dictionary) -> Result<String, StoreError> {
         let bytes = dictionary::to_bytes(d)?;
         let id = dictionary::content_id(d)?;
-        let path = self.dictionary_path(&id)?;
-        if !path.exists() {
-            write_atomically(&path, &bytes)?;
-        }
+        self.put_dictionary_bytes(&id, &bytes)?;
         Ok(id)
     }
 
-    /// Reads and verifies dictionary `id`; `Ok(None)` when absent.
+    /// Stores a dictionary or a gradient tile set (both live in `dictionaries/`, told apart by
+    /// their magic); returns its content id. Storing the same file twice is a no-op.
+    pub fn put_any_dictionary(&self, d: &AnyDictionary) -> Result<String, StoreError> {
+        let bytes = d.to_bytes()?;
+        let id = d.content_id()?;
+        self.put_dictionary_bytes(&id, &bytes)?;
+        Ok(id)
+    }
+
+    fn put_dictionary_bytes(&self, id: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        let path = self.dictionary_path(id)?;
+        if !path.exists() {
+            write_atomically(&path, bytes)?;
+        }
+        Ok(())
+    }
+
+    /// Reads and verifies dictionary `id`; `Ok(None)` when absent. A gradient tile set stored
+    /// under `id` is an error ([`Store::get_any_dictionary`] reads either).
     pub fn get_dictionary(&self, id: &str) -> Result<Option<Dictionary>, StoreError> {
+        match self.get_any_dictionary(id)? {
+            None => Ok(None),
+            Some(AnyDictionary::Dictionary(d)) => Ok(Some(Arc::unwrap_or_clone(d))),
+            Some(AnyDictionary::Gradient(_)) => Err(StoreError::Corrupt {
+                id: id.to_string(),
+                source: DictionaryError::Malformed(
+                    "it is a gradient tile set, not a dictionary".into(),
+                ),
+            }),
+        }
+    }
+
+    /// Reads and verifies dictionary or gradient tile set `id` (by its magic); `Ok(None)` when
+    /// absent.
+    pub fn get_any_dictionary(&self, id: &str) -> Result<Option<AnyDictionary>, StoreError> {
         let path = self.dictionary_path(id)?;
         let f = match std::fs::File::open(&path) {
             Ok(f) => f,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(io(&path)(e)),
         };
-        let d = dictionary::read_dictionary(std::io::BufReader::new(f), MAX_DICTIONARY_BYTES)
-            .map_err(|source| StoreError::Corrupt {
+        let d = dictionary::read_any(std::io::BufReader::new(f), MAX_DICTIONARY_BYTES).map_err(
+            |source| StoreError::Corrupt {
                 id: id.to_string(),
                 source,
-            })?;
-        let actual = dictionary::content_id(&d)?;
+            },
+        )?;
+        let actual = d.content_id()?;
         if actual != id {
             return Err(StoreError::Corrupt {
                 id: id.to_string(),

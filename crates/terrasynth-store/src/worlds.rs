@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use terrasynth_core::dictionary::MatchWeights;
+use terrasynth_core::dictionary::{AmplifierKind, MatchWeights};
 use terrasynth_core::landscape::{LandscapeConfig, Material, ScatterRule, Species, WaterConfig};
 use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
 use terrasynth_core::raster::georef::{is_map_point, MAX_MERCATOR_LAT};
@@ -22,8 +22,8 @@ pub struct WorldDefinition {
     pub name: String,
     /// Exemplar id of the base (the coarse DEM or sketch).
     pub base: String,
-    /// Dictionaries of the synthesis chain: ids (every amplified zoom) or `{"id", "zooms"}`
-    /// bands.
+    /// Dictionaries of the synthesis chain: ids (every amplified zoom) or `{"id", "zooms",
+    /// "amplifier"}` bands.
     pub dictionaries: Vec<WorldDictionary>,
     /// Deepest zoom served.
     pub max_zoom: u8,
@@ -88,9 +88,11 @@ pub struct WorldRequest {
     /// Exemplar id of the base.
     pub base: String,
     /// The synthesis chain's dictionaries: one dictionary id (used at every amplified zoom), or
-    /// one `{"id", "zooms"}` object per zoom band (`zooms`: `"FIRST-LAST"` or `"ZOOM"`; bands lie
-    /// above the native zoom and at most `max_zoom` and do not overlap; a zoom no band covers
-    /// uses the nearest shallower band, zooms below the first band the first band).
+    /// one `{"id", "zooms", "amplifier"}` object per zoom band (`zooms`: `"FIRST-LAST"` or
+    /// `"ZOOM"`, absent only for a single entry covering every zoom; bands lie above the native
+    /// zoom and at most `max_zoom` and do not overlap; a zoom no band covers uses the nearest
+    /// shallower band, zooms below the first band the first band; `amplifier`: `"dictionary"`
+    /// (default) or `"gradient"`, whose `id` is then a gradient tile set).
     pub dictionaries: Vec<WorldDictionary>,
     /// Deepest zoom served (default: the default world's).
     #[serde(default)]
@@ -156,15 +158,23 @@ pub enum WorldDictionary {
     Band(DictionaryBandRef),
 }
 
-/// A dictionary and the zooms it amplifies.
+/// A dictionary (or gradient tile set) and the zooms it amplifies, with the amplifier that uses
+/// it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DictionaryBandRef {
-    /// Dictionary id.
+    /// Dictionary (or gradient tile set) id.
     pub id: String,
-    /// Zooms, `"FIRST-LAST"` or `"ZOOM"`, e.g. `"9-12"`.
+    /// Zooms, `"FIRST-LAST"` or `"ZOOM"`, e.g. `"9-12"`; may be absent only for a world's one
+    /// entry (every amplified zoom).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(example = "9-12")]
-    pub zooms: String,
+    pub zooms: Option<String>,
+    /// `dictionary` (the default: dictionary matching; `id` names a dictionary) or `gradient`
+    /// (gradient tiles; `id` names a gradient tile set built with `"kind": "gradient"`).
+    #[serde(default, skip_serializing_if = "AmplifierKind::is_default")]
+    #[schema(value_type = String, example = "gradient")]
+    pub amplifier: AmplifierKind,
 }
 
 impl TryFrom<serde_json::Value> for WorldDictionary {
@@ -175,8 +185,16 @@ impl TryFrom<serde_json::Value> for WorldDictionary {
             serde_json::Value::String(id) => Ok(WorldDictionary::Id(id)),
             v @ serde_json::Value::Object(_) => serde_json::from_value(v)
                 .map(WorldDictionary::Band)
-                .map_err(|e| format!("dictionaries: a band is {{\"id\", \"zooms\"}}: {e}")),
-            _ => Err("dictionaries: each entry is a dictionary id or {\"id\", \"zooms\"}".into()),
+                .map_err(|e| {
+                    format!(
+                        "dictionaries: a band is {{\"id\", \"zooms\", \"amplifier\": \
+                         \"dictionary\" | \"gradient\"}}: {e}"
+                    )
+                }),
+            _ => Err(
+                "dictionaries: each entry is a dictionary id or {\"id\", \"zooms\", \"amplifier\"}"
+                    .into(),
+            ),
         }
     }
 }
@@ -187,6 +205,14 @@ impl WorldDictionary {
         match self {
             WorldDictionary::Id(id) => id,
             WorldDictionary::Band(b) => &b.id,
+        }
+    }
+
+    /// The amplifier of this entry (a bare id: `dictionary`).
+    pub fn amplifier(&self) -> AmplifierKind {
+        match self {
+            WorldDictionary::Id(_) => AmplifierKind::Dictionary,
+            WorldDictionary::Band(b) => b.amplifier,
         }
     }
 }
@@ -346,11 +372,12 @@ impl WorldDefinition {
         for (i, d) in self.dictionaries.iter().enumerate() {
             out.push(match d {
                 WorldDictionary::Id(_) => None,
-                WorldDictionary::Band(b) => {
-                    Some(b.zooms.parse::<ZoomBand>().map_err(|e| {
+                WorldDictionary::Band(b) => match &b.zooms {
+                    None => None,
+                    Some(z) => Some(z.parse::<ZoomBand>().map_err(|e| {
                         ServiceError::Invalid(format!("dictionaries[{i}].zooms: {e}"))
-                    })?)
-                }
+                    })?),
+                },
             });
         }
         check_bands(&out, 0, self.max_zoom)
@@ -359,7 +386,7 @@ impl WorldDefinition {
     }
 
     /// The chain's dictionaries with their zooms ([`WorldDefinition::band_zooms`]), their ids
-    /// well-formed.
+    /// well-formed (each entry's amplifier is [`WorldDictionary::amplifier`]).
     pub fn dictionary_bands(&self) -> Result<Vec<(Option<ZoomBand>, &str)>, ServiceError> {
         let zooms = self.band_zooms()?;
         let mut out = Vec::with_capacity(zooms.len());

@@ -1,28 +1,28 @@
-//! A world's scale-aware chain: one dictionary (and the amplifiers built on it) per zoom band,
-//! looked up per amplified zoom by the rule of [`terrasynth_core::synth::bands`].
+//! A world's scale-aware chain: one dictionary or gradient tile set (and the amplifiers built on
+//! it) per zoom band, looked up per amplified zoom by the rule of
+//! [`terrasynth_core::synth::bands`].
 
-use std::sync::Arc;
-
-use terrasynth_core::dictionary::Dictionary;
+use terrasynth_core::dictionary::AnyDictionary;
 use terrasynth_core::synth::{band_for, ZoomBand};
 
-/// One band of a world's chain: a dictionary and the zooms it amplifies.
+/// One band of a world's chain: a dictionary (dictionary amplifier) or a gradient tile set
+/// (gradient amplifier) and the zooms it amplifies.
 #[derive(Clone, Debug)]
 pub struct DictionaryBand {
     /// The zooms; `None`: every amplified zoom (a world's single dictionary).
     pub zooms: Option<ZoomBand>,
-    /// The dictionary.
-    pub dictionary: Arc<Dictionary>,
+    /// The dictionary or gradient tile set; its kind is the band's amplifier.
+    pub dictionary: AnyDictionary,
     /// Its content id.
     pub id: String,
 }
 
 impl DictionaryBand {
-    /// A world's single dictionary, used at every amplified zoom.
-    pub fn every_zoom(dictionary: Arc<Dictionary>, id: impl Into<String>) -> Self {
+    /// A world's single dictionary (or gradient tile set), used at every amplified zoom.
+    pub fn every_zoom(dictionary: impl Into<AnyDictionary>, id: impl Into<String>) -> Self {
         DictionaryBand {
             zooms: None,
-            dictionary,
+            dictionary: dictionary.into(),
             id: id.into(),
         }
     }

@@ -1,10 +1,10 @@
 //! The elevation pyramid: the base raster resampled to Web Mercator at the native zoom `z_b`,
-//! averaged overviews below it, and one amplification level per zoom above it, with the dictionary of the zoom's band.
+//! averaged overviews below it, and one amplification level per zoom above it, with the amplifier (dictionary or gradient tiles) of the zoom's band.
 //!
 //! Tile `(z, x, y)` is the window `[256x, 256x+256) × [256y, 256y+256)` of zoom `z`'s global pixel
 //! plane. Zoom `z_b` is sampled bilinearly from the base (pixels outside the base get the world's
 //! fill elevation). A tile of zoom `z > z_b` is amplified from the window of zoom `z − 1` that
-//! [`Amplifier::parent_window_for`] names, assembled from cached parent tiles; since the amplifier
+//! [`Level::parent_window_for`] names, assembled from cached parent tiles; since the amplifier
 //! is window-invariant, a tile computed alone equals the same window of any larger region. A tile
 //! of zoom `z < z_b` is the 2×2 box average of its four children, so zooming is consistent.
 //!
@@ -32,7 +32,7 @@ use ndarray::Array2;
 
 use terrasynth_core::landscape::{water, WaterConfig};
 use terrasynth_core::raster::{box2, Grid};
-use terrasynth_core::synth::{Amplifier, Field, Window};
+use terrasynth_core::synth::{AnyAmplifier, Field, Level, Window};
 
 use crate::cancel::uncancellable;
 use crate::chain::Chain;
@@ -47,7 +47,7 @@ pub struct ElevationLevels {
     base: Grid,
     fill_m: f32,
     extent: Extent,
-    amplifiers: Chain<Amplifier>,
+    amplifiers: Chain<AnyAmplifier>,
     cache: LevelCache<Array2<f32>>,
     coverage: CoverageLevels,
     water: WaterConfig,
@@ -112,7 +112,7 @@ impl ElevationLevels {
         base: Grid,
         fill_m: f32,
         extent: Extent,
-        amplifiers: Chain<Amplifier>,
+        amplifiers: Chain<AnyAmplifier>,
         cache_bytes: u64,
         coverage_bytes: u64,
         water: WaterConfig,

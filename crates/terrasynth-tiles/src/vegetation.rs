@@ -19,7 +19,7 @@ use ndarray::Array2;
 
 use terrasynth_core::landscape::{vegetation, LandscapeConfig};
 use terrasynth_core::raster::box2;
-use terrasynth_core::synth::{Amplifier, Field, Window};
+use terrasynth_core::synth::{AnyAmplifier, Field, Level, SynthError, Window};
 
 use crate::base_layers::{cut, WholeWorld};
 use crate::chain::Chain;
@@ -50,7 +50,7 @@ pub struct VegetationLevels {
     landscape: Arc<LandscapeConfig>,
     /// The amplifiers (one per zoom band) reconstructing the species layers from the same
     /// matches as elevation.
-    amplifiers: Chain<Amplifier>,
+    amplifiers: Chain<AnyAmplifier>,
     cache: LevelCache<Vec<Array2<f32>>>,
 }
 
@@ -59,7 +59,7 @@ impl VegetationLevels {
     /// reconstruct only the species layers), cached in at most `cache_bytes` bytes.
     pub fn new(
         landscape: Arc<LandscapeConfig>,
-        amplifiers: Chain<Amplifier>,
+        amplifiers: Chain<AnyAmplifier>,
         cache_bytes: u64,
     ) -> Self {
         VegetationLevels {
@@ -137,9 +137,13 @@ impl VegetationLevels {
         let need = amp.parent_window_for(w);
         let parent_elev = inputs.elevation.window(z - 1, need)?;
         let parent_veg = self.window(inputs, z - 1, need)?;
+        // The gradient amplifier reconstructs every layer it is given (from its coarse gradients).
         let in_dict: Vec<bool> = species
             .iter()
-            .map(|sp| amp.dictionary().layer_index(&sp.name).is_some())
+            .map(|sp| match amp {
+                AnyAmplifier::Dictionary(a) => a.dictionary().layer_index(&sp.name).is_some(),
+                AnyAmplifier::Gradient(_) => true,
+            })
             .collect();
         let parent = Field {
             window: need,
@@ -171,7 +175,15 @@ impl VegetationLevels {
         for (k, sp) in species.iter().enumerate() {
             let mut d = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
                 Some(a) => a.clone(),
-                None => amp.upsample_layer(&parent_veg[k], need, w)?,
+                None => match amp {
+                    AnyAmplifier::Dictionary(a) => a.upsample_layer(&parent_veg[k], need, w)?,
+                    AnyAmplifier::Gradient(_) => {
+                        return Err(TileError::Synth(SynthError::BadWindow(format!(
+                            "the gradient level returned no `{}` layer",
+                            sp.name
+                        ))))
+                    }
+                },
             };
             let suit = vegetation::suitability_grid(
                 sp,

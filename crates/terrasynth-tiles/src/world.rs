@@ -14,12 +14,15 @@ use std::sync::{Arc, Mutex};
 use ndarray::Array2;
 
 use terrasynth_core::analysis::ppa::{self, Features, PpaParams};
+use terrasynth_core::dictionary::AnyDictionary;
 use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::water::default_sea_level;
 use terrasynth_core::landscape::{LandscapeConfig, WaterConfig};
 use terrasynth_core::raster::reproject::to_geographic;
 use terrasynth_core::raster::{CellSizes, Crs, Georef, Grid};
-use terrasynth_core::synth::{check_bands, Amplifier, Levers, Window, ZoomBand};
+use terrasynth_core::synth::{
+    check_bands, Amplifier, AnyAmplifier, GradientAmplifier, Levers, SynthError, Window, ZoomBand,
+};
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
 use crate::chain::{Chain, DictionaryBand};
@@ -173,6 +176,33 @@ fn dictionary_key(bands: &[DictionaryBand]) -> String {
     }
 }
 
+/// The amplifier of band `b`: dictionary matching (with `weights` and `levers`) or gradient
+/// tiles, by the band's file. `species`: `None` reconstructs elevation only, else elevation and
+/// those layers (the vegetation pyramid's amplifiers).
+fn band_amplifier(
+    b: &DictionaryBand,
+    weights: &MatchWeights,
+    levers: Levers,
+    species: Option<&[String]>,
+) -> Result<AnyAmplifier, SynthError> {
+    Ok(match &b.dictionary {
+        AnyDictionary::Dictionary(d) => {
+            let a = Amplifier::new(d.clone(), weights)?.with_levers(levers);
+            AnyAmplifier::Dictionary(Box::new(match species {
+                None => a.without_layers(),
+                Some(s) => a.with_only_layers(s),
+            }))
+        }
+        AnyDictionary::Gradient(g) => {
+            let a = GradientAmplifier::new(g.clone())?;
+            AnyAmplifier::Gradient(match species {
+                None => a.without_layers(),
+                Some(_) => a,
+            })
+        }
+    })
+}
+
 /// Hex SHA-256 of everything that determines a world's tiles.
 fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
     use sha2::{Digest, Sha256};
@@ -231,13 +261,11 @@ impl World {
         let zooms: Vec<_> = parts.dictionaries.iter().map(|b| b.zooms).collect();
         check_bands(&zooms, extent.z_base, extent.max_zoom)?;
         let amplifiers = Chain::new(&parts.dictionaries, |b| {
-            Amplifier::new(b.dictionary.clone(), &parts.weights)
-                .map(|a| a.with_levers(levers).without_layers())
+            band_amplifier(b, &parts.weights, levers, None)
         })?;
         let species = parts.landscape.species_names();
         let layer_amplifiers = Chain::new(&parts.dictionaries, |b| {
-            Amplifier::new(b.dictionary.clone(), &parts.weights)
-                .map(|a| a.with_levers(levers).with_only_layers(&species))
+            band_amplifier(b, &parts.weights, levers, Some(&species))
         })?;
         let fingerprint = fingerprint(&parts, extent.z_base);
         // The whole-world landscape layers come out of the same budget; the level caches keep

@@ -23,7 +23,9 @@ use ndarray::Array2;
 use serde::{Deserialize, Serialize};
 
 use super::error::DictionaryError;
+use super::exemplar::PixelWindow;
 use crate::raster::boxfilter::{box2, reduce2x2};
+use crate::raster::Grid;
 
 /// Smallest and largest tile size (child pixels; a multiple of 4).
 pub const TILE_RANGE: (usize, usize) = (4, 16);
@@ -333,6 +335,25 @@ pub fn coarse_gy(p: &ParentPlane<'_>, x: i64, y: i64) -> f32 {
         )
     };
     0.5 * (col(kx) * (1.0 - fx) + col(kx + 1) * fx)
+}
+
+/// The elevation plane [`build_gradient_tiles`] reads from an exemplar: its values, NaN where
+/// the grid is invalid or inside one of the `exclude` windows (held-out evaluation), so that no
+/// tile touches them. The one way the command line and the admin API's builds prepare exemplars.
+pub fn exemplar_plane(grid: &Grid, exclude: &[PixelWindow]) -> Array2<f32> {
+    let excluded = |r: usize, c: usize| {
+        exclude.iter().any(|w| {
+            r.checked_sub(w.row).is_some_and(|d| d < w.height)
+                && c.checked_sub(w.col).is_some_and(|d| d < w.width)
+        })
+    };
+    Array2::from_shape_fn(grid.data.dim(), |(r, c)| {
+        if grid.is_valid(r, c) && !excluded(r, c) {
+            grid.data[[r, c]]
+        } else {
+            f32::NAN
+        }
+    })
 }
 
 /// A candidate patch: exemplar, child origin row and column.
