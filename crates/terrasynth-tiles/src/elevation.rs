@@ -269,16 +269,33 @@ impl ElevationLevels {
                 self.tile(z + 1, cx, cy).map(Some)
             });
         }
-        let elevation = self.amplify(z, w, route)?;
+        let mut parents = Vec::new();
+        let elevation = self.amplify(z, w, route, &mut parents)?;
         self.tiles_synthesized.fetch_add(1, Ordering::Relaxed);
+        // The parent tiles a cold chain skipped, computed once the tile is done (an abandoned
+        // tile leaves nothing behind).
+        if !parents.is_empty() {
+            self.queue_prefill(parents);
+        }
         Ok(elevation)
     }
 
-    /// Window `w` of amplified zoom `z`, from the parent window it needs.
-    fn amplify(&self, z: u8, w: Window, route: Route) -> Result<Array2<f32>, TileError> {
+    /// Window `w` of amplified zoom `z`, from the parent window it needs; the parent tiles a
+    /// cold chain skipped are added to `skipped`. Each level is a cancellation point.
+    fn amplify(
+        &self,
+        z: u8,
+        w: Window,
+        route: Route,
+        skipped: &mut Vec<TileKey>,
+    ) -> Result<Array2<f32>, TileError> {
         let amplifier = self.amplifiers.at(z);
         let need = amplifier.parent_window_for(w);
-        let parent = Field::elevation_only(need, self.parent_window(z - 1, need, route)?);
+        let parent = self.parent_window(z - 1, need, route, skipped)?;
+        if crate::cancel::is_cancelled() {
+            return Err(TileError::Cancelled);
+        }
+        let parent = Field::elevation_only(need, parent);
         let field = amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
         let mut out = field.elevation;
         // Outside the coverage the elevation is the fill, exactly (no detail over no data).
@@ -305,8 +322,14 @@ impl ElevationLevels {
 
     /// Window `w` of zoom `z` as a child's parent: assembled from tiles, unless the least-work
     /// route finds none of its tiles cached or in progress above the native zoom; then it is
-    /// amplified directly and its tiles are queued for the background thread.
-    fn parent_window(&self, z: u8, w: Window, route: Route) -> Result<Array2<f32>, TileError> {
+    /// amplified directly and its tiles are added to `skipped` (for the background thread).
+    fn parent_window(
+        &self,
+        z: u8,
+        w: Window,
+        route: Route,
+        skipped: &mut Vec<TileKey>,
+    ) -> Result<Array2<f32>, TileError> {
         if route == Route::Tiles || z <= self.extent.z_base {
             return self.window_by(z, w, route);
         }
@@ -318,9 +341,9 @@ impl ElevationLevels {
         if keys.iter().any(|k| self.cache.is_known(k)) {
             return self.window(z, w);
         }
-        let values = self.amplify(z, w, Route::LeastWork)?;
+        let values = self.amplify(z, w, Route::LeastWork, skipped)?;
         self.windows_synthesized.fetch_add(1, Ordering::Relaxed);
-        self.queue_prefill(keys);
+        skipped.extend(keys);
         Ok(values)
     }
 
