@@ -20,8 +20,9 @@
 //! needs, and so on down the chain, each window a little larger than half its child (the halo
 //! of [`Amplifier::parent_window_for`]) instead of whole 256² tiles: about an eighth of the work
 //! for a zoom-14 tile six levels above its native zoom. Window invariance makes the values
-//! bit-identical to the tile path. The parent tiles themselves are then computed on a
-//! background thread ([`Prefill`]), so that the neighbours that follow find their parents cached.
+//! bit-identical to the tile path. Once the tile is done, the parent tiles themselves are
+//! computed on a background thread ([`Prefill`]), so that the neighbours that follow find their
+//! parents cached; every level is a cancellation point, and an abandoned tile queues nothing.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
