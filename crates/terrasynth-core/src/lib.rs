@@ -14,4 +14,5 @@ pub mod dictionary;
 pub mod landscape;
 pub mod names;
 pub mod raster;
+pub mod simd;
 pub mod synth;

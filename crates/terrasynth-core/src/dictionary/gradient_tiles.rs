@@ -259,6 +259,15 @@ pub fn tile_stats(
     y0: i64,
     t: usize,
 ) -> (usize, usize, f32) {
+    let sigma = tile_sigma(p, x0, y0, t);
+    let (a, b) = tile_colours(p, table, axis, x0, y0, t, sigma);
+    (a, b, sigma)
+}
+
+/// The local scale `σ` of the tile with child origin `(x0, y0)` (even) and side `t`: the RMS
+/// parent gradient over its `(t/2)²` parent cells, at least `MIN_SIGMA`. The same for both
+/// axes' tiles at that origin.
+pub fn tile_sigma(p: &ParentPlane<'_>, x0: i64, y0: i64, t: usize) -> f32 {
     let (pc, pr, h) = (x0 / 2, y0 / 2, (t / 2) as i64);
     let mut ss = 0.0f32;
     for r in pr..pr + h {
@@ -269,7 +278,21 @@ pub fn tile_stats(
             ss += dx * dx + dy * dy;
         }
     }
-    let sigma = (ss / (2 * h * h) as f32).sqrt().max(MIN_SIGMA);
+    (ss / (2 * h * h) as f32).sqrt().max(MIN_SIGMA)
+}
+
+/// The edge colours `(first, second)` of the tile of `axis` with child origin `(x0, y0)` and
+/// side `t`, whose scale is `sigma` ([`tile_sigma`]).
+pub fn tile_colours(
+    p: &ParentPlane<'_>,
+    table: &ColourTable,
+    axis: Axis,
+    x0: i64,
+    y0: i64,
+    t: usize,
+    sigma: f32,
+) -> (usize, usize) {
+    let (pc, pr, h) = (x0 / 2, y0 / 2, (t / 2) as i64);
     let inv = 1.0 / (sigma * h as f32);
     let edge = |e: i64| -> usize {
         let mut sum = 0.0f32;
@@ -285,7 +308,7 @@ pub fn tile_stats(
         Axis::X => pc,
         Axis::Y => pr,
     };
-    (edge(first), edge(first + h), sigma)
+    (edge(first), edge(first + h))
 }
 
 /// Derivative of the cubic Hermite interpolant (central-difference tangents) of `v[0..4]`
@@ -335,6 +358,68 @@ pub fn coarse_gy(p: &ParentPlane<'_>, x: i64, y: i64) -> f32 {
         )
     };
     0.5 * (col(kx) * (1.0 - fx) + col(kx + 1) * fx)
+}
+
+/// [`coarse_gx`] and [`coarse_gy`] added into `gx` and `gy` at every child pixel of the rows
+/// of `cols` pixels starting at `(x0, y0)` (row-major; `gx.len() == gy.len()`), by the same
+/// arithmetic, hence the same bits. The Hermite slopes along each parent row are computed once
+/// for the four child rows that interpolate them, and those across each parent column once per
+/// child row, instead of twice per pixel.
+pub fn add_coarse_gradients(
+    p: &ParentPlane<'_>,
+    (x0, y0): (i64, i64),
+    cols: usize,
+    gx: &mut [f32],
+    gy: &mut [f32],
+) {
+    let rows = gx.len().checked_div(cols).unwrap_or(0);
+    if rows == 0 {
+        return;
+    }
+    // x-slopes along the parent rows the band's child rows interpolate between.
+    let r_lo = floor_div(y0 - 1, 2);
+    let r_hi = floor_div(y0 + rows as i64 - 2, 2) + 1;
+    let mut xs = vec![0.0f32; (r_hi - r_lo + 1) as usize * cols];
+    for (ri, srow) in xs.chunks_mut(cols).enumerate() {
+        let r = r_lo + ri as i64;
+        for (i, s) in srow.iter_mut().enumerate() {
+            let x = x0 + i as i64;
+            let k = floor_div(x, 2);
+            *s = hermite_slope(
+                [p.at(r, k - 1), p.at(r, k), p.at(r, k + 1), p.at(r, k + 2)],
+                x.rem_euclid(2) == 1,
+            );
+        }
+    }
+    // y-slopes across the parent columns the row's child columns interpolate between.
+    let c_lo = floor_div(x0 - 1, 2);
+    let c_hi = floor_div(x0 + cols as i64 - 2, 2) + 1;
+    let mut cs = vec![0.0f32; (c_hi - c_lo + 1) as usize];
+    for (ry, (rx, rgy)) in gx.chunks_mut(cols).zip(gy.chunks_mut(cols)).enumerate() {
+        let y = y0 + ry as i64;
+        let ky = floor_div(y - 1, 2);
+        let fy = if y.rem_euclid(2) == 0 { 0.75 } else { 0.25 };
+        let a = &xs[(ky - r_lo) as usize * cols..][..cols];
+        let b = &xs[(ky + 1 - r_lo) as usize * cols..][..cols];
+        for ((v, &sa), &sb) in rx.iter_mut().zip(a).zip(b) {
+            *v += 0.5 * (sa * (1.0 - fy) + sb * fy);
+        }
+        let k = floor_div(y, 2);
+        let half = y.rem_euclid(2) == 1;
+        for (ci, s) in cs.iter_mut().enumerate() {
+            let c = c_lo + ci as i64;
+            *s = hermite_slope(
+                [p.at(k - 1, c), p.at(k, c), p.at(k + 1, c), p.at(k + 2, c)],
+                half,
+            );
+        }
+        for (i, v) in rgy.iter_mut().enumerate() {
+            let x = x0 + i as i64;
+            let j = (floor_div(x - 1, 2) - c_lo) as usize;
+            let fx = if x.rem_euclid(2) == 0 { 0.75 } else { 0.25 };
+            *v += 0.5 * (cs[j] * (1.0 - fx) + cs[j + 1] * fx);
+        }
+    }
 }
 
 /// The elevation plane [`build_gradient_tiles`] reads from an exemplar: its values, NaN where
@@ -556,6 +641,43 @@ mod tests {
         assert_eq!(t.colour(0.1), 2);
         assert_eq!(t.colour(3.0), 3);
         assert_eq!(t.colour(f32::NAN), 0);
+    }
+
+    #[test]
+    fn shared_coarse_gradients_equal_the_per_pixel_ones_bit_for_bit() {
+        let (rows, cols) = (23usize, 29usize);
+        let data: Vec<f32> = (0..rows * cols)
+            .map(|i| ((i * 7919) % 113) as f32 * 1.37 - 40.0 + (i as f32).sin() * 3.0)
+            .collect();
+        let p = ParentPlane {
+            data: &data,
+            row0: -5,
+            col0: 3,
+            cols,
+        };
+        // Odd and even origins, several widths and heights, inside the plane's reach.
+        for (x0, y0, w, h) in [
+            (10i64, -1i64, 17usize, 8usize),
+            (9, 2, 20, 5),
+            (12, 0, 1, 1),
+        ] {
+            let mut gx = vec![0.5f32; w * h];
+            let mut gy = vec![-0.25f32; w * h];
+            add_coarse_gradients(&p, (x0, y0), w, &mut gx, &mut gy);
+            for r in 0..h {
+                for c in 0..w {
+                    let (x, y) = (x0 + c as i64, y0 + r as i64);
+                    assert_eq!(
+                        gx[r * w + c].to_bits(),
+                        (0.5 + coarse_gx(&p, x, y)).to_bits()
+                    );
+                    assert_eq!(
+                        gy[r * w + c].to_bits(),
+                        (-0.25 + coarse_gy(&p, x, y)).to_bits()
+                    );
+                }
+            }
+        }
     }
 
     #[test]

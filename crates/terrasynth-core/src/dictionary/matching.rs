@@ -391,16 +391,6 @@ fn dots_avx2(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
     dots_blocked(q, lo_t, n_pad, dots);
 }
 
-#[cfg(target_arch = "x86_64")]
-fn avx2_available() -> bool {
-    std::arch::is_x86_feature_detected!("avx2")
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-fn avx2_available() -> bool {
-    false
-}
-
 fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], avx2: bool) {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
@@ -440,7 +430,7 @@ impl Matcher {
             weights,
             lo_t,
             n_pad,
-            avx2: avx2_available(),
+            avx2: crate::simd::avx2_available(),
         })
     }
 

@@ -11,7 +11,12 @@
 //! `σ/2` and weighted along the constrained axis by the Hermite window
 //! `S(1 − |2u − 1|)`, `S(t) = 3t² − 2t³` (edge smoothing: zero on the constrained edges, and the
 //! two staggered layers sum to 1). The target gradient field is the parent's Hermite-interpolant
-//! gradient ([`coarse_gx`], [`coarse_gy`]: the preconditioning) plus that detail.
+//! gradient ([`coarse_gx`], [`coarse_gy`]: the preconditioning; computed row by row with shared
+//! slopes by [`add_coarse_gradients`]) plus that detail.
+//!
+//! [`tile_stats`]: crate::dictionary::gradient_tiles::tile_stats
+//! [`coarse_gx`]: crate::dictionary::gradient_tiles::coarse_gx
+//! [`coarse_gy`]: crate::dictionary::gradient_tiles::coarse_gy
 //!
 //! Heights are reconstructed per `T × T` block by the precomputed Poisson operator
 //! ([`Reconstruction`]) against the parent's `(T/2)²` control points under the block, so every
@@ -35,7 +40,7 @@ use super::error::SynthError;
 use super::field::{Field, Window};
 use super::gradient_solve::{input_count, Reconstruction};
 use crate::dictionary::gradient_tiles::{
-    coarse_gx, coarse_gy, tile_stats, Axis, ColourTable, GradientTileSet, ParentPlane,
+    add_coarse_gradients, tile_colours, tile_sigma, Axis, ColourTable, GradientTileSet, ParentPlane,
 };
 use crate::dictionary::rng::hash2;
 
@@ -50,6 +55,9 @@ pub struct GradientAmplifier {
     /// `T/2` blending weights of a reconstruction block by block-local parent cell
     /// ([`cell_weights`]).
     weights: Vec<f32>,
+    /// [`GradientAmplifier::weights`] by block-local child pixel (`T` values, each cell's
+    /// weight twice), so that blending reads them contiguously.
+    pixel_weights: Vec<f32>,
     with_layers: bool,
 }
 
@@ -73,8 +81,10 @@ impl GradientAmplifier {
                 s * s * (3.0 - 2.0 * s)
             })
             .collect();
+        let weights = cell_weights(t);
         Ok(GradientAmplifier {
-            weights: cell_weights(t),
+            pixel_weights: (0..t).map(|c| weights[c / 2]).collect(),
+            weights,
             table: ColourTable::new(set.params.colours),
             set,
             recon,
@@ -169,8 +179,9 @@ impl GradientAmplifier {
                     // The overlap of tile and rectangle, in rectangle coordinates.
                     let (c0, c1) = ((tx - x0).max(0), (tx + t - x0).min(w));
                     let (r0, r1) = ((ty - y0).max(0), (ty + t - y0).min(h));
+                    let sigma = tile_sigma(p, tx, ty, tu);
                     for axis in [Axis::X, Axis::Y] {
-                        let (a, b, sigma) = tile_stats(p, &self.table, axis, tx, ty, tu);
+                        let (a, b) = tile_colours(p, &self.table, axis, tx, ty, tu, sigma);
                         let salt = (layer as u64) * 2 + axis as u64 + 1;
                         let hsh = hash2(
                             params.seed.wrapping_add(salt.wrapping_mul(0x9E37_79B9)),
@@ -186,16 +197,24 @@ impl GradientAmplifier {
                             let k0 = r as usize * cols;
                             let tc0 = (c0 + x0 - tx) as usize;
                             let n = (c1 - c0) as usize;
-                            let (dst, wts) = match axis {
-                                Axis::X => (&mut dx[k0 + c0 as usize..][..n], None),
-                                Axis::Y => {
-                                    (&mut dy[k0 + c0 as usize..][..n], Some(self.window[tr]))
+                            let src = &trow[tc0..tc0 + n];
+                            match axis {
+                                // Weighted along x: by column.
+                                Axis::X => {
+                                    let dst = &mut dx[k0 + c0 as usize..][..n];
+                                    let wts = &self.window[tc0..tc0 + n];
+                                    for ((d, &v), &w) in dst.iter_mut().zip(src).zip(wts) {
+                                        *d += (v * scale) * w;
+                                    }
                                 }
-                            };
-                            for (q, d) in dst.iter_mut().enumerate() {
-                                let tc = tc0 + q;
-                                let v = trow[tc] * scale;
-                                *d += v * wts.unwrap_or(self.window[tc]);
+                                // Weighted along y: one weight for the row.
+                                Axis::Y => {
+                                    let dst = &mut dy[k0 + c0 as usize..][..n];
+                                    let w = self.window[tr];
+                                    for (d, &v) in dst.iter_mut().zip(src) {
+                                        *d += (v * scale) * w;
+                                    }
+                                }
                             }
                         }
                     }
@@ -225,14 +244,7 @@ impl GradientAmplifier {
                 if detail {
                     self.add_detail(p, (region.col0, y0), cols, gx, gy);
                 }
-                for (r, (rx, ry)) in gx.chunks_mut(cols).zip(gy.chunks_mut(cols)).enumerate() {
-                    let y = y0 + r as i64;
-                    for (c, (vx, vy)) in rx.iter_mut().zip(ry.iter_mut()).enumerate() {
-                        let x = region.col0 + c as i64;
-                        *vx += coarse_gx(p, x, y);
-                        *vy += coarse_gy(p, x, y);
-                    }
-                }
+                add_coarse_gradients(p, (region.col0, y0), cols, gx, gy);
             });
         (gx, gy)
     }
@@ -326,9 +338,10 @@ impl GradientAmplifier {
                             let wy = self.weights[br / 2];
                             let src = &s.out[br * tu..(br + 1) * tu];
                             let dst = &mut orow[(c0 - out.col0) as usize..(c1 - out.col0) as usize];
-                            for (k, d) in dst.iter_mut().enumerate() {
-                                let bc = (c0 - bx) as usize + k;
-                                *d += (wy * self.weights[bc / 2]) * src[bc];
+                            let b0 = (c0 - bx) as usize;
+                            let wx = &self.pixel_weights[b0..b0 + dst.len()];
+                            for ((d, &w), &v) in dst.iter_mut().zip(wx).zip(&src[b0..]) {
+                                *d += (wy * w) * v;
                             }
                         }
                     }

@@ -19,6 +19,8 @@ pub struct Reconstruction {
     /// `inputs × T²`: for each input, its weight in every output (input-major, so
     /// [`Reconstruction::apply`] is a sequence of contiguous multiply-adds).
     weights: Vec<f32>,
+    /// The widest build of [`Reconstruction::apply`] this CPU runs.
+    isa: Isa,
 }
 
 /// Number of inputs of a block of side `t`: `gx` (`t·(t−1)`, row-major), `gy` (`(t−1)·t`), `p`
@@ -170,7 +172,11 @@ impl Reconstruction {
                 weights[j * n + o] = v as f32;
             }
         }
-        Ok(Reconstruction { t, weights })
+        Ok(Reconstruction {
+            t,
+            weights,
+            isa: Isa::detect(),
+        })
     }
 
     /// The block side.
@@ -179,15 +185,99 @@ impl Reconstruction {
     }
 
     /// The heights of a block (`out`, `t²`, row-major) from `inputs` ([`input_count`]); each
-    /// output sums its terms in input order.
+    /// output sums its terms in input order. Dispatches to a kernel of the block's size that
+    /// keeps the outputs in registers, compiled for AVX2 where the CPU has it (the same IEEE
+    /// multiplications and additions in the same order, hence the same bits); [`apply_naive`]
+    /// is its reference.
     #[inline]
     pub fn apply(&self, inputs: &[f32], out: &mut [f32]) {
-        let n = self.t * self.t;
-        out.iter_mut().for_each(|v| *v = 0.0);
-        for (col, &x) in self.weights.chunks_exact(n).zip(inputs) {
-            for (o, &w) in out.iter_mut().zip(col) {
-                *o += w * x;
-            }
+        let isa = self.isa;
+        match self.t {
+            4 => apply_sized::<16>(&self.weights, inputs, out, isa),
+            8 => apply_sized::<64>(&self.weights, inputs, out, isa),
+            12 => apply_sized::<144>(&self.weights, inputs, out, isa),
+            16 => apply_sized::<256>(&self.weights, inputs, out, isa),
+            _ => apply_naive(&self.weights, self.t * self.t, inputs, out),
         }
     }
+
+    /// The operator's weights, input-major (`inputs × t²`).
+    pub fn weights(&self) -> &[f32] {
+        &self.weights
+    }
+}
+
+/// `out = Σ_j inputs[j] · weights[j·n ..][..n]`, each output summed in input order: the
+/// reference of the sized kernels.
+pub fn apply_naive(weights: &[f32], n: usize, inputs: &[f32], out: &mut [f32]) {
+    out.iter_mut().for_each(|v| *v = 0.0);
+    for (col, &x) in weights.chunks_exact(n).zip(inputs) {
+        for (o, &w) in out.iter_mut().zip(col) {
+            *o += w * x;
+        }
+    }
+}
+
+/// [`apply_naive`] for `N` outputs with the accumulators in a fixed-size array (registers).
+#[inline(always)]
+fn apply_fixed<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32]) {
+    let mut acc = [0.0f32; N];
+    for (col, &x) in weights.chunks_exact(N).zip(inputs) {
+        let col: &[f32; N] = match col.try_into() {
+            Ok(c) => c,
+            Err(_) => return,
+        };
+        for k in 0..N {
+            acc[k] += col[k] * x;
+        }
+    }
+    for (o, a) in out.iter_mut().zip(acc) {
+        *o = a;
+    }
+}
+
+/// The instruction sets the sized kernels are compiled for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Isa {
+    Baseline,
+    Avx2,
+    Avx512,
+}
+
+impl Isa {
+    fn detect() -> Self {
+        if crate::simd::avx512_available() {
+            Isa::Avx512
+        } else if crate::simd::avx2_available() {
+            Isa::Avx2
+        } else {
+            Isa::Baseline
+        }
+    }
+}
+
+/// [`apply_fixed`] compiled for AVX2 (no fused multiply-add: the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn apply_fixed_avx2<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32]) {
+    apply_fixed::<N>(weights, inputs, out);
+}
+
+/// [`apply_fixed`] compiled for AVX-512 (no fused multiply-add: the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn apply_fixed_avx512<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32]) {
+    apply_fixed::<N>(weights, inputs, out);
+}
+
+fn apply_sized<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32], isa: Isa) {
+    #[cfg(target_arch = "x86_64")]
+    match isa {
+        // SAFETY: `Isa::detect` chose these only when the CPU reports the feature.
+        Isa::Avx512 => return unsafe { apply_fixed_avx512::<N>(weights, inputs, out) },
+        Isa::Avx2 => return unsafe { apply_fixed_avx2::<N>(weights, inputs, out) },
+        Isa::Baseline => {}
+    }
+    let _ = isa;
+    apply_fixed::<N>(weights, inputs, out);
 }

@@ -10,7 +10,9 @@ use terrasynth_core::dictionary::gradient_format::{content_id, from_bytes, is_gr
 use terrasynth_core::dictionary::{
     build_gradient_tiles, DictionaryError, GradientParams, GradientTileSet,
 };
-use terrasynth_core::synth::gradient_solve::{input_count, solve_naive, Reconstruction};
+use terrasynth_core::synth::gradient_solve::{
+    apply_naive, input_count, solve_naive, Reconstruction,
+};
 use terrasynth_core::synth::{
     amplify_chain, AnyAmplifier, ClampedRaster, Field, GradientAmplifier, Window,
 };
@@ -173,6 +175,25 @@ proptest! {
                     + naive[(2 * br + 1) * t + 2 * bc] + naive[(2 * br + 1) * t + 2 * bc + 1]) / 4.0;
                 prop_assert!((m - f64::from(inputs[p0 + br * (t / 2) + bc])).abs() < 1e-6);
             }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 16, .. ProptestConfig::default() })]
+
+    /// The sized (register, AVX2) kernels sum in the reference's order: the same bits.
+    #[test]
+    fn sized_reconstruction_kernels_equal_the_naive_sum_bit_for_bit(t in prop::sample::select(vec![4usize, 8, 12, 16]), seed in 0u64..1000) {
+        let recon = Reconstruction::new(t).unwrap();
+        let mut rng = terrasynth_core::dictionary::Rng::new(seed);
+        let inputs: Vec<f32> = (0..input_count(t)).map(|_| (rng.normal() * 50.0) as f32).collect();
+        let mut fast = vec![1.0f32; t * t];
+        recon.apply(&inputs, &mut fast);
+        let mut naive = vec![0.0f32; t * t];
+        apply_naive(recon.weights(), t * t, &inputs, &mut naive);
+        for (a, b) in fast.iter().zip(&naive) {
+            prop_assert_eq!(a.to_bits(), b.to_bits());
         }
     }
 }
