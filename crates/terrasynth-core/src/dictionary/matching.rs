@@ -20,6 +20,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::atoms::{Dictionary, LayerKind};
+use crate::simd::Isa;
 
 /// Slack added to the pruning bound so that float rounding of the full score can never make a
 /// pruned atom the true argmax.
@@ -351,8 +352,8 @@ pub struct Matcher {
     lo_t: Vec<f32>,
     /// `n` rounded up to a multiple of [`ATOM_BLOCK`].
     n_pad: usize,
-    /// Whether the CPU runs the AVX2 build of the dot-product kernel.
-    avx2: bool,
+    /// The widest build of the dot-product kernel this CPU runs.
+    isa: Isa,
     alt_range: (f32, f32),
     slope_range: (f32, f32),
 }
@@ -391,14 +392,22 @@ fn dots_avx2(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
     dots_blocked(q, lo_t, n_pad, dots);
 }
 
-fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], avx2: bool) {
+/// The same kernel compiled for AVX-512 (the same bits, as [`dots_avx2`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn dots_avx512(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
+    dots_blocked(q, lo_t, n_pad, dots);
+}
+
+fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], isa: Isa) {
     #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: `avx2` is true only when the CPU reports AVX2 support.
-        unsafe { dots_avx2(q, lo_t, n_pad, dots) };
-        return;
+    match isa {
+        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
+        Isa::Avx512 => return unsafe { dots_avx512(q, lo_t, n_pad, dots) },
+        Isa::Avx2 => return unsafe { dots_avx2(q, lo_t, n_pad, dots) },
+        Isa::Baseline => {}
     }
-    let _ = avx2;
+    let _ = isa;
     dots_blocked(q, lo_t, n_pad, dots);
 }
 
@@ -430,7 +439,7 @@ impl Matcher {
             weights,
             lo_t,
             n_pad,
-            avx2: crate::simd::avx2_available(),
+            isa: Isa::detect(),
         })
     }
 
@@ -473,7 +482,7 @@ impl Matcher {
         dots.clear();
         dots.resize(self.n_pad, 0.0);
         if q.elevation.len() * self.n_pad == self.lo_t.len() {
-            all_dots(&q.elevation, &self.lo_t, self.n_pad, dots, self.avx2);
+            all_dots(&q.elevation, &self.lo_t, self.n_pad, dots, self.isa);
         }
         dots.truncate(n);
         let s = self.sigmas(q);

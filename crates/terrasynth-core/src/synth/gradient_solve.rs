@@ -11,6 +11,7 @@
 //! densely for each call: the naive twin the property tests compare against.
 
 use super::error::SynthError;
+use crate::simd::Isa;
 
 /// The precomputed reconstruction operator of one tile size.
 #[derive(Clone, Debug)]
@@ -236,26 +237,6 @@ fn apply_fixed<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32])
     }
 }
 
-/// The instruction sets the sized kernels are compiled for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Isa {
-    Baseline,
-    Avx2,
-    Avx512,
-}
-
-impl Isa {
-    fn detect() -> Self {
-        if crate::simd::avx512_available() {
-            Isa::Avx512
-        } else if crate::simd::avx2_available() {
-            Isa::Avx2
-        } else {
-            Isa::Baseline
-        }
-    }
-}
-
 /// [`apply_fixed`] compiled for AVX2 (no fused multiply-add: the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
@@ -273,7 +254,7 @@ fn apply_fixed_avx512<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut
 fn apply_sized<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32], isa: Isa) {
     #[cfg(target_arch = "x86_64")]
     match isa {
-        // SAFETY: `Isa::detect` chose these only when the CPU reports the feature.
+        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
         Isa::Avx512 => return unsafe { apply_fixed_avx512::<N>(weights, inputs, out) },
         Isa::Avx2 => return unsafe { apply_fixed_avx2::<N>(weights, inputs, out) },
         Isa::Baseline => {}
