@@ -897,6 +897,56 @@ fn wait_for_prefill(world: &World) {
 }
 
 #[test]
+fn the_background_prefill_moves_while_every_global_pool_worker_waits() {
+    // The export renders tiles on rayon's global pool, and its workers may all wait for parent
+    // tiles the background prefill is computing: the prefill must not need them (it hung an
+    // export in CI when its parallel loops ran on the global pool).
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    use std::time::{Duration, Instant};
+    let world = small_world();
+    let workers = rayon::current_num_threads();
+    let (started, released) = (AtomicUsize::new(0), AtomicBool::new(false));
+    std::thread::scope(|s| {
+        // Every worker of the global pool waits until released (or gives up after 300 s).
+        let blocked = s.spawn(|| {
+            rayon::broadcast(|_| {
+                started.fetch_add(1, Ordering::AcqRel);
+                let t0 = Instant::now();
+                while !released.load(Ordering::Acquire) {
+                    if t0.elapsed() > Duration::from_secs(300) {
+                        return false;
+                    }
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+                true
+            })
+        });
+        while started.load(Ordering::Acquire) < workers {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // A cold zoom-11 tile, computed on a pool of its own, queues its parents.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        pool.install(|| world.elevation_tile(11, 1434, 770).unwrap());
+        assert!(world.stats().windows_synthesized > 0, "a cold chain");
+        let t0 = Instant::now();
+        let mut ended = true;
+        while world.stats().prefilling {
+            if t0.elapsed() > Duration::from_secs(240) {
+                ended = false;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        released.store(true, Ordering::Release);
+        assert!(blocked.join().unwrap().iter().all(|&ok| ok));
+        assert!(ended, "the prefill waited for the global pool's workers");
+    });
+}
+
+#[test]
 fn a_cold_chain_of_windows_equals_the_chain_of_cached_tiles() {
     // World A: a zoom-11 tile in an area nobody visited goes down its chain by windows (zooms 10
     // and 9 amplified directly); world B: the same tile after 3×3 blocks of its ancestors were

@@ -21,8 +21,9 @@
 //! of [`Amplifier::parent_window_for`]) instead of whole 256² tiles: about an eighth of the work
 //! for a zoom-14 tile six levels above its native zoom. Window invariance makes the values
 //! bit-identical to the tile path. Once the tile is done, the parent tiles themselves are
-//! computed on a background thread ([`Prefill`]), so that the neighbours that follow find their
-//! parents cached; every level is a cancellation point, and an abandoned tile queues nothing.
+//! computed in the background on a thread pool of their own ([`Prefill`]), so that the
+//! neighbours that follow find their parents cached; every level is a cancellation point, and
+//! an abandoned tile queues nothing.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -68,17 +69,36 @@ pub struct ElevationLevels {
 /// computes them when it needs them).
 const PREFILL_QUEUE: usize = 256;
 
-/// Parent tiles to compute in the background after a cold chain: one thread at a time per
-/// world, started when tiles are queued and ending when the queue is empty.
+/// Parent tiles to compute in the background after a cold chain: one job at a time per world,
+/// started when tiles are queued and ending when the queue is empty.
+///
+/// The job runs on a thread pool of its own, never on rayon's global pool: other threads (the
+/// export renders its tiles on the global pool) may wait for the tiles it computes, and if its
+/// amplification's parallel loops needed the global pool's workers while every one of them
+/// waited for it, nothing would move (it hung an export in CI before).
 #[derive(Debug, Default)]
 struct Prefill {
     queue: Mutex<VecDeque<TileKey>>,
     running: AtomicBool,
+    /// Built at the first cold chain; `None` if the threads could not be started.
+    pool: OnceLock<Option<rayon::ThreadPool>>,
 }
 
 impl Prefill {
     fn queue(&self) -> std::sync::MutexGuard<'_, VecDeque<TileKey>> {
         self.queue.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The background job's pool (rayon's default thread count).
+    fn pool(&self) -> Option<&rayon::ThreadPool> {
+        self.pool
+            .get_or_init(|| {
+                rayon::ThreadPoolBuilder::new()
+                    .thread_name(|i| format!("elevation-prefill-{i}"))
+                    .build()
+                    .ok()
+            })
+            .as_ref()
     }
 }
 
@@ -365,18 +385,19 @@ impl ElevationLevels {
             self.prefill.running.store(false, Ordering::Release);
             return;
         };
-        let spawned = std::thread::Builder::new()
-            .name("elevation-prefill".into())
-            .spawn(move || me.run_prefill());
-        if spawned.is_err() {
-            // No thread: requests compute the tiles when they need them.
-            self.prefill.running.store(false, Ordering::Release);
-            self.prefill.queue().clear();
+        match self.prefill.pool() {
+            Some(pool) => pool.spawn(move || me.run_prefill()),
+            None => {
+                // No threads: requests compute the tiles when they need them.
+                self.prefill.running.store(false, Ordering::Release);
+                self.prefill.queue().clear();
+            }
         }
     }
 
-    /// The background thread: computes queued tiles by the tile route (so that their parents
-    /// are cached too) until the queue is empty. Nobody can abandon this work.
+    /// The background job (on [`Prefill`]'s own pool): computes queued tiles by the tile route
+    /// (so that their parents are cached too) until the queue is empty. Nobody can abandon this
+    /// work.
     fn run_prefill(&self) {
         loop {
             let next = self.prefill.queue().pop_front();
