@@ -18,9 +18,9 @@ use terrasynth_core::dictionary::{
     ExemplarOptions, GradientTileSet, Learning,
 };
 use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
-use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::raster::{embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
-use terrasynth_tiles::{DictionaryBand, TileError, World, WorldParts};
+use terrasynth_tiles::{DictionaryBand, TileError, World, WorldClasses, WorldParts};
 
 use super::error::StartupError;
 use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_CARRIZO, EMBEDDED_TIENSHAN};
@@ -45,6 +45,35 @@ fn load_raster(spec: &str, dir: &Path) -> Result<Grid, String> {
     }
     let path = dir.join(spec);
     read_geotiff_file(&path, &ReadLimits::default()).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The land-cover classes of world file `wc` on its base `base` (`None` without `[classes]`):
+/// the `raster` GeoTIFF with a `legend`, or the `rgb` PNG (placed on the base's grid) with `hsv`.
+fn load_classes(wc: &WorldConfig, base: &Grid) -> Result<Option<WorldClasses>, String> {
+    let Some(c) = &wc.classes else {
+        return Ok(None);
+    };
+    let raster = match (&c.raster, &c.rgb, c.hsv.is_empty()) {
+        (Some(path), None, true) => {
+            load_raster(path, &wc.dir).map_err(|e| format!("classes.raster: {e}"))?
+        }
+        (None, Some(path), false) => {
+            let path = wc.dir.join(path);
+            let bytes = std::fs::read(&path)
+                .map_err(|e| format!("classes.rgb: {}: {e}", path.display()))?;
+            read_png_rgb(&bytes, base.georef, &ReadLimits::default())
+                .map_err(|e| format!("classes.rgb: {}: {e}", path.display()))?
+        }
+        _ => {
+            return Err(
+                "[classes] takes `raster` with a `legend`, or `rgb` with `hsv` ranges".into(),
+            )
+        }
+    };
+    Ok(Some(WorldClasses {
+        config: c.config(),
+        raster,
+    }))
 }
 
 /// A stable name for the dictionary (or gradient tile set) a world's settings `d` produce (one of
@@ -246,6 +275,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
     for wc in &config.worlds {
         let t = Instant::now();
         let base = load_raster(&wc.base, &wc.dir).map_err(world_error(wc))?;
+        let classes = load_classes(wc, &base).map_err(world_error(wc))?;
         tracing::info!(world = %wc.name, rows = base.rows(), cols = base.cols(), "world: base loaded");
         let mut dictionaries = Vec::new();
         for (zooms, cfg) in wc.dictionary_bands() {
@@ -278,6 +308,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
                 sea_level_m: wc.sea_level_m,
                 ..wc.water.clone()
             },
+            classes,
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         if let Some(why) = share_shortfall(&world) {
@@ -318,6 +349,9 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
             sea_level_m: def.sea_level_m,
             ..def.water.clone().unwrap_or_default()
         },
+        classes: resolved
+            .classes
+            .map(|(config, raster)| WorldClasses { config, raster }),
         name: def.name,
     })
 }

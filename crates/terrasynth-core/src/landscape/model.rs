@@ -150,6 +150,10 @@ pub struct Material {
     /// Vegetation densities by species name.
     #[serde(default)]
     pub vegetation: BTreeMap<String, Trapezoid>,
+    /// Land-cover class weights by class name (`class.<name>`: 1 inside the class, 0 outside,
+    /// smoothed over the world's `classes.smoothing_m`); the world must define those classes.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub class: BTreeMap<String, Trapezoid>,
     /// Amplitude of the noise modulation, 0..1 (0: none).
     #[serde(default)]
     pub spread: f32,
@@ -224,6 +228,7 @@ impl Default for LandscapeConfig {
                 curvature: None,
                 wetness: None,
                 vegetation: BTreeMap::new(),
+                class: BTreeMap::new(),
                 spread: 0.0,
                 spread_scale_m: default_spread_scale(),
             }],
@@ -314,6 +319,9 @@ impl LandscapeConfig {
                 }
                 t.check(&format!("material {} vegetation {sp}", m.name))?;
             }
+            for (class, t) in &m.class {
+                t.check(&format!("material {} class.{class}", m.name))?;
+            }
             if !(m.spread.is_finite() && (0.0..=1.0).contains(&m.spread)) {
                 return bad(format!("material {}: spread must lie in [0, 1]", m.name));
             }
@@ -336,6 +344,25 @@ impl LandscapeConfig {
         let d = &self.drainage;
         if !(d.png_min_m2 > 0.0 && d.png_max_m2 > d.png_min_m2 && d.png_max_m2.is_finite()) {
             return bad("drainage: need 0 < png_min_m2 < png_max_m2".into());
+        }
+        Ok(())
+    }
+
+    /// Checks that every `class.<name>` term of the materials names one of the world's classes
+    /// `names`; the error names the material and the class.
+    pub fn check_classes(&self, names: &[String]) -> Result<(), LandscapeError> {
+        for m in &self.materials {
+            if let Some(c) = m.class.keys().find(|c| !names.contains(c)) {
+                let known = if names.is_empty() {
+                    "the world has no classes".to_string()
+                } else {
+                    format!("its classes are {}", names.join(", "))
+                };
+                return Err(LandscapeError::Invalid(format!(
+                    "material {} names unknown class `{c}` ({known})",
+                    m.name
+                )));
+            }
         }
         Ok(())
     }

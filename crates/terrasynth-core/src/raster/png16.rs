@@ -1,5 +1,7 @@
 //! 16-bit grayscale PNG elevation rasters: each pixel holds the elevation in whole metres as an
-//! unsigned 16-bit integer. PNG carries no georeference, so the caller supplies one.
+//! unsigned 16-bit integer. PNG carries no georeference, so the caller supplies one. Also 8-bit
+//! RGB(A) images (satellite images classified into land-cover classes), read as packed
+//! `0xRRGGBB` values ([`read_png_rgb`]).
 
 // Sizes and offsets come from the file: every sum and product on them is checked.
 #![warn(clippy::arithmetic_side_effects)]
@@ -86,6 +88,73 @@ pub fn read_png16(bytes: &[u8], georef: Georef, limits: &ReadLimits) -> Result<G
     let data =
         Array2::from_shape_vec((height, width), values).map_err(|e| malformed(e.to_string()))?;
     Ok(Grid::new(data, georef))
+}
+
+/// Reads an 8-bit RGB or RGBA PNG placed with `georef` as one grid of packed colours
+/// `r·65536 + g·256 + b` ([`crate::landscape::classes::pack_rgb`]); fully transparent pixels
+/// (alpha 0) are invalid.
+///
+/// # Errors
+/// As [`read_png16`]; [`RasterError::Unsupported`] for anything but 8-bit RGB or RGBA.
+pub fn read_png_rgb(
+    bytes: &[u8],
+    georef: Georef,
+    limits: &ReadLimits,
+) -> Result<Grid, RasterError> {
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Err(RasterError::UnknownFormat("no PNG signature".to_string()));
+    }
+    let png_limits = png::Limits {
+        bytes: limits.byte_budget(4).saturating_add(1 << 20),
+    };
+    let mut decoder = png::Decoder::new_with_limits(Cursor::new(bytes), png_limits);
+    let (width, height, channels) = {
+        let info = decoder.read_header_info().map_err(map_png_error)?;
+        limits.check_dimensions(u64::from(info.width), u64::from(info.height))?;
+        let channels = match (info.color_type, info.bit_depth) {
+            (png::ColorType::Rgb, png::BitDepth::Eight) => 3usize,
+            (png::ColorType::Rgba, png::BitDepth::Eight) => 4,
+            (t, d) => {
+                return Err(unsupported(format!(
+                    "{t:?} at {} bits per sample (an RGB image must be 8-bit RGB or RGBA)",
+                    d as u8
+                )))
+            }
+        };
+        (info.width as usize, info.height as usize, channels)
+    };
+    if !georef.is_sane(width, height) {
+        return Err(RasterError::BadGeoreference(format!(
+            "{georef:?} is not a sane georeference for a {width}×{height} grid"
+        )));
+    }
+    let mut reader = decoder.read_info().map_err(map_png_error)?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| malformed("image size overflows"))?;
+    let expected = width.saturating_mul(height).saturating_mul(channels);
+    if size != expected {
+        return Err(malformed(format!(
+            "output buffer of {size} bytes for a {width}×{height} image of {channels} channels"
+        )));
+    }
+    let mut buf = vec![0u8; size];
+    reader.next_frame(&mut buf).map_err(map_png_error)?;
+    let mut values = Vec::with_capacity(width.saturating_mul(height));
+    let mut valid = Vec::with_capacity(width.saturating_mul(height));
+    for p in buf.chunks_exact(channels) {
+        values.push(crate::landscape::classes::pack_rgb([p[0], p[1], p[2]]));
+        valid.push(channels == 3 || p[3] > 0);
+    }
+    let data =
+        Array2::from_shape_vec((height, width), values).map_err(|e| malformed(e.to_string()))?;
+    let mut grid = Grid::new(data, georef);
+    if valid.iter().any(|v| !v) {
+        grid.valid = Some(
+            Array2::from_shape_vec((height, width), valid).map_err(|e| malformed(e.to_string()))?,
+        );
+    }
+    Ok(grid)
 }
 
 /// Encodes `grid` as a 16-bit grayscale PNG: values are rounded to whole metres and clamped to
