@@ -511,6 +511,18 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
     w.landscape
         .validate()
         .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
+    let class_names = match &w.classes {
+        None => Vec::new(),
+        Some(c) => {
+            let cfg = c.config();
+            cfg.validate()
+                .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
+            cfg.names()
+        }
+    };
+    w.landscape
+        .check_classes(&class_names)
+        .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_dictionaries(&w, text, path)?;
     check_amplifiers(&w, text, path)?;
     Ok(w)

@@ -447,6 +447,93 @@ mod tests {
     }
 
     #[test]
+    fn world_files_take_a_class_raster_or_an_rgb_image_on_the_base_grid() {
+        let dir = tempfile::tempdir().unwrap();
+        let w = world_with(dir.path(), "");
+        let base = load_raster(&w.base, &w.dir).unwrap();
+        // A class raster: 1 on the west half, 2 on the east half.
+        write_density(
+            dir.path(),
+            "lc.tif",
+            96,
+            |_, c| if c < 48 { 1.0 } else { 2.0 },
+        );
+        write_density(dir.path(), "lc_small.tif", 64, |_, _| 1.0);
+        // An RGB image: green west, grey east.
+        let mut png = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut png, 96, 96);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut wr = enc.write_header().unwrap();
+            let data: Vec<u8> = (0..96 * 96)
+                .flat_map(|i| {
+                    if i % 96 < 48 {
+                        [30, 100, 40]
+                    } else {
+                        [150, 150, 150]
+                    }
+                })
+                .collect();
+            wr.write_image_data(&data).unwrap();
+        }
+        std::fs::write(dir.path().join("sat.png"), png).unwrap();
+        let with = |classes: &str| {
+            let mut w = w.clone();
+            w.classes = Some(toml::from_str(classes).unwrap());
+            load_classes(&w, &base)
+        };
+        let hsv =
+            "hsv = [{ name = \"forest\", hsv = { h = [70, 170], s = [0.2, 1], v = [0, 0.6] } }, \
+                   { name = \"rock\", hsv = { h = [0, 360], s = [0, 0.1], v = [0.3, 1] } }]";
+        for classes in [
+            "raster = \"lc.tif\"\nlegend = { \"1\" = \"forest\", \"2\" = \"rock\" }".to_string(),
+            format!("rgb = \"sat.png\"\n{hsv}"),
+        ] {
+            let c = with(&classes).unwrap().unwrap();
+            let weights = terrasynth_tiles::ClassWeights::of(&c, &base).unwrap();
+            assert_eq!(weights.names(), ["forest", "rock"], "{classes}");
+        }
+        // Refused by name: a raster without a legend, an RGB image without ranges, a missing
+        // file; a raster off the base's grid or a legend missing a value when weighed.
+        for (classes, needle) in [
+            (format!("raster = \"lc.tif\"\n{hsv}"), "[classes] takes"),
+            ("rgb = \"sat.png\"".to_string(), "[classes] takes"),
+            (
+                "raster = \"nope.tif\"\nlegend = { \"1\" = \"a\" }".into(),
+                "nope.tif",
+            ),
+        ] {
+            let e = with(&classes).unwrap_err();
+            assert!(e.contains(needle), "{classes}: {e}");
+        }
+        for (classes, needle) in [
+            (
+                "raster = \"lc_small.tif\"\nlegend = { \"1\" = \"a\" }",
+                "base's grid",
+            ),
+            (
+                "raster = \"lc.tif\"\nlegend = { \"1\" = \"a\" }",
+                "raster value 2",
+            ),
+        ] {
+            let c = with(classes).unwrap().unwrap();
+            let e = terrasynth_tiles::ClassWeights::of(&c, &base)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{classes}: {e}");
+        }
+        // A material naming a class the file does not define is a configuration error.
+        let text = "name = \"t\"\nbase = \"hills.tif\"\n[classes]\nraster = \"lc.tif\"\n\
+                    legend = { \"1\" = \"forest\" }\n[landscape]\n[[landscape.materials]]\n\
+                    name = \"bog\"\ncolour = [0, 0, 0]\nclass.wetland = { min = 0.5, max = 1 }\n";
+        let e = crate::config::parse_world(text, "t.toml", dir.path())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unknown class `wetland`"), "{e}");
+    }
+
+    #[test]
     fn bad_vegetation_rasters_are_refused_by_name() {
         let dir = tempfile::tempdir().unwrap();
         write_density(dir.path(), "small.tif", 64, |_, _| 0.5);
