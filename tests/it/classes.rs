@@ -38,12 +38,11 @@ fn class_landscape() -> LandscapeConfig {
         name = "scree"
         colour = [140, 140, 140]
         class.rock = { min = 0.0, max = 2.0, falloff = 1.0 }
+        [[species]]
+        name = "sward"
+        class.grass = { min = 0.5, max = 1.0 }
     "#;
-    let l: LandscapeConfig = toml::from_str(toml).unwrap();
-    LandscapeConfig {
-        species: LandscapeConfig::tienshan().species,
-        ..l
-    }
+    toml::from_str(toml).unwrap()
 }
 
 /// A world whose 256 × 256 EPSG:3857 base is exactly tile `(TX, TY)` of zoom `Z` (so a native
@@ -154,6 +153,33 @@ fn splat_weights_follow_the_class_raster_pixel_by_pixel() {
     let (_, cols, px) = crate::support::decode_rgba(&bytes);
     assert_eq!(px[(10 * cols + 10) * 4..][..2], [255, 0]);
     assert_eq!(px[(10 * cols + 200) * 4..][..2], [0, 255]);
+}
+
+#[test]
+fn species_densities_follow_the_classes() {
+    // `sward` admits grass weights in [0.5, 1] and nothing else constrains it: its suitability
+    // is 1 west of column 128 and 0 from it on, so its density is 0 on the east half at the
+    // native zoom and on every amplified tile there, and at least the clustering floor (the
+    // share of suitability kept whatever the seeding) on the west half at the native zoom.
+    let world = class_world(0.0).unwrap();
+    let floor = world.landscape().clustering.floor;
+    let v = world.vegetation_tile(Z, TX, TY).unwrap();
+    for ((r, c), &d) in v[0].indexed_iter() {
+        if c < 128 {
+            assert!(d >= floor - 1e-6, "west ({r}, {c}): {d}");
+        } else {
+            assert_eq!(d, 0.0, "east ({r}, {c})");
+        }
+    }
+    // Zoom 9: the east child tiles of the base tile, away from the border.
+    for (x, y) in [(2 * TX + 1, 2 * TY), (2 * TX + 1, 2 * TY + 1)] {
+        let v = world.vegetation_tile(Z + 1, x, y).unwrap();
+        for ((r, c), &d) in v[0].indexed_iter() {
+            if c >= 8 {
+                assert_eq!(d, 0.0, "zoom 9 ({x}, {y}) pixel ({r}, {c})");
+            }
+        }
+    }
 }
 
 #[test]

@@ -203,8 +203,8 @@ pub struct WorldRequest {
     /// class raster (the exemplar's `classes` layer, uploaded as a `classes` part) with a
     /// `legend` `{"value": "name"}`, or an RGB image (its `rgb` layer, uploaded as an `rgb`
     /// part: an 8-bit RGB(A) PNG) with `hsv` ranges per class; `exemplar` defaults to the base
-    /// and must lie on its grid. Materials weigh classes with `"class": {"name": {"min", "max",
-    /// "falloff"}}`. Checked: 422 naming the problem.
+    /// and must lie on its grid. Materials and species weigh classes with `"class": {"name":
+    /// {"min", "max", "falloff"}}`. Checked: 422 naming the problem.
     #[serde(default)]
     pub classes: Option<WorldClassesRef>,
 }

@@ -308,6 +308,7 @@ impl World {
             .unwrap_or_else(|| extent.middle());
         let etag_seeds = etag_seeds(&fingerprint, &scatter_fingerprint(&parts.landscape));
         let landscape = Arc::new(parts.landscape);
+        let classes = Arc::new(classes);
         Ok(World {
             memory: MemoryPlan {
                 share: parts.cache_bytes,
@@ -334,16 +335,17 @@ impl World {
                 budget / 64,
                 parts.water.clone(),
             ),
-            whole: WholeWorld::new(landscape.clone()),
+            whole: WholeWorld::new(landscape.clone(), classes.clone()),
             drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
             vegetation: VegetationLevels::new(
                 landscape.clone(),
+                classes.clone(),
                 layer_amplifiers,
                 budget / 4 - water_bytes / 2,
             ),
             water: WaterLevels::new(water_bytes),
             water_config: parts.water,
-            classes: Arc::new(classes),
+            classes,
             landscape,
             features: Mutex::new(None),
         })

@@ -19,7 +19,9 @@ pub use classes::{classify_rgb, validate_classes, ClassesConfig, HsvClass, HsvRa
 pub use model::{Clustering, DrainageStyle, LandscapeConfig, Material, Species, Trapezoid};
 pub use scatter::{Instance, Method, RuleField, ScatterRule, SizeRange};
 pub use splat::{colour_of, material_weights, quantise_weights, LayerInputs};
-pub use vegetation::{cluster_densities, exemplar_vegetation, suitability, viability_gate};
+pub use vegetation::{
+    class_factor, cluster_densities, exemplar_vegetation, suitability, viability_gate,
+};
 pub use water::{water, Water, WaterConfig};
 
 use thiserror::Error;

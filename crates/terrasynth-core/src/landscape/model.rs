@@ -87,6 +87,10 @@ pub struct Species {
     /// Wetness, log10 of the upstream area in m².
     #[serde(default)]
     pub wetness: Option<Trapezoid>,
+    /// Land-cover class weights by class name (`class.<name>`), as for materials; they apply
+    /// where a world gives class weights (dictionary builds, which have none, ignore them).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub class: BTreeMap<String, Trapezoid>,
 }
 
 fn default_species_colour() -> [u8; 3] {
@@ -295,6 +299,9 @@ impl LandscapeConfig {
                     t.check(&format!("species {} {k}", s.name))?;
                 }
             }
+            for (class, t) in &s.class {
+                t.check(&format!("species {} class.{class}", s.name))?;
+            }
         }
         for (i, m) in self.materials.iter().enumerate() {
             if !crate::names::is_valid_name(&m.name)
@@ -348,19 +355,23 @@ impl LandscapeConfig {
         Ok(())
     }
 
-    /// Checks that every `class.<name>` term of the materials names one of the world's classes
+    /// Checks that every `class.<name>` term of the materials and species names one of the world's classes
     /// `names`; the error names the material and the class.
     pub fn check_classes(&self, names: &[String]) -> Result<(), LandscapeError> {
-        for m in &self.materials {
-            if let Some(c) = m.class.keys().find(|c| !names.contains(c)) {
+        let terms = self
+            .materials
+            .iter()
+            .map(|m| ("material", &m.name, &m.class))
+            .chain(self.species.iter().map(|s| ("species", &s.name, &s.class)));
+        for (what, name, class) in terms {
+            if let Some(c) = class.keys().find(|c| !names.contains(c)) {
                 let known = if names.is_empty() {
                     "the world has no classes".to_string()
                 } else {
                     format!("its classes are {}", names.join(", "))
                 };
                 return Err(LandscapeError::Invalid(format!(
-                    "material {} names unknown class `{c}` ({known})",
-                    m.name
+                    "{what} {name} names unknown class `{c}` ({known})"
                 )));
             }
         }
