@@ -439,6 +439,41 @@ fn bad_control_rasters_are_422_naming_the_problem_and_store_nothing() {
             .as_bytes(),
     );
     assert_eq!(st, 201, "{}", String::from_utf8_lossy(&body));
+    // A dictionary built from the exemplar with the class raster carries it as class layers
+    // (one per raster value, matched as the group `classes`); the `rgb` layer is left out.
+    let (st, body) = post(
+        &server,
+        "/admin/dictionaries",
+        TOKEN,
+        "application/json",
+        serde_json::json!({"name": "classy", "exemplars": [with_layers], "atoms": 8, "patch": 16,
+            "stride": 8, "learning": "medoids:1", "seed": 5})
+        .to_string()
+        .as_bytes(),
+    );
+    assert_eq!(st, 202, "{}", String::from_utf8_lossy(&body));
+    let job = json(&body)["id"].as_str().unwrap().to_string();
+    let done = wait_until(&server, &job, |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    });
+    assert_eq!(done["state"], "succeeded", "{done}");
+    let id = done["result"].as_str().unwrap();
+    let (st, d) = get(&server, &format!("/dictionaries/{id}"), None);
+    assert_eq!(st, 200);
+    let layers: Vec<String> = json(&d)["layers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l.as_str().unwrap().to_string())
+        .collect();
+    assert!(
+        layers.contains(&"classes_1".to_string()) && layers.contains(&"classes_2".to_string()),
+        "{layers:?}"
+    );
+    assert!(
+        !layers.iter().any(|l| l == "classes" || l == "rgb"),
+        "{layers:?}"
+    );
     for name in ["legend", "satellite"] {
         let (st, info) = get(&server, &format!("/worlds/{name}"), None);
         assert_eq!(st, 200);

@@ -18,6 +18,7 @@ use ndarray::Array2;
 use serde::{Deserialize, Serialize};
 
 use super::LandscapeError;
+use crate::dictionary::LayerKind;
 
 /// The HSV ranges of one class, each `[min, max]` inclusive.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -282,6 +283,52 @@ impl ClassesConfig {
         }
         Ok(out)
     }
+}
+
+/// The distinct values of a class raster (NaN cells skipped), ascending; the error names a value
+/// that is no integer 0–65535, or more than [`MAX_CLASSES`] values.
+pub fn class_values(raster: &Array2<f32>) -> Result<Vec<u16>, LandscapeError> {
+    let mut values = std::collections::BTreeSet::new();
+    for &x in raster {
+        if x.is_nan() {
+            continue;
+        }
+        if !(x.fract() == 0.0 && (0.0..=65535.0).contains(&x)) {
+            return Err(LandscapeError::Invalid(format!(
+                "class raster value {x} is no integer 0–65535"
+            )));
+        }
+        values.insert(x as u16);
+        if values.len() > MAX_CLASSES {
+            return Err(LandscapeError::Invalid(format!(
+                "the class raster holds more than {MAX_CLASSES} values"
+            )));
+        }
+    }
+    Ok(values.into_iter().collect())
+}
+
+/// The class layers of a dictionary build (multi-layer synthesis, class layers): one layer
+/// `{group}_{v}` per value `v` of `values`, 1 where `raster` holds `v` and 0 elsewhere, of kind
+/// [`LayerKind::Class`] in group `group` (matching weighs the group by its name).
+pub fn class_layers(
+    group: &str,
+    raster: &Array2<f32>,
+    values: &[u16],
+) -> Vec<(String, Array2<f32>, LayerKind)> {
+    values
+        .iter()
+        .map(|&v| {
+            let x = f32::from(v);
+            (
+                format!("{group}_{v}"),
+                raster.mapv(|r| if r == x { 1.0 } else { 0.0 }),
+                LayerKind::Class {
+                    group: group.to_string(),
+                },
+            )
+        })
+        .collect()
 }
 
 /// An 8-bit RGB colour packed into one exactly representable `f32`: `r·65536 + g·256 + b`
