@@ -67,7 +67,7 @@ impl Trapezoid {
 
 /// One vegetation species (or cover type) and its niche: the product of the weight curves of
 /// the parameters it names (an absent parameter does not constrain).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Species {
     /// Layer name (letters, digits, `_`, `-`); also the EXR channel name.
@@ -91,6 +91,45 @@ pub struct Species {
     /// where a world gives class weights (dictionary builds, which have none, ignore them).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub class: BTreeMap<String, Trapezoid>,
+}
+
+// `Debug` by hand: as derived, with `class` only when it is not empty, so the text of a species
+// or material without class terms is what it was before classes — world fingerprints (ETags) and
+// configured worlds' dictionary aliases hash it.
+impl std::fmt::Debug for Species {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("Species");
+        d.field("name", &self.name)
+            .field("colour", &self.colour)
+            .field("elevation", &self.elevation)
+            .field("slope", &self.slope)
+            .field("northness", &self.northness)
+            .field("wetness", &self.wetness);
+        if !self.class.is_empty() {
+            d.field("class", &self.class);
+        }
+        d.finish()
+    }
+}
+
+impl std::fmt::Debug for Material {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("Material");
+        d.field("name", &self.name)
+            .field("colour", &self.colour)
+            .field("elevation", &self.elevation)
+            .field("slope", &self.slope)
+            .field("northness", &self.northness)
+            .field("curvature", &self.curvature)
+            .field("wetness", &self.wetness)
+            .field("vegetation", &self.vegetation);
+        if !self.class.is_empty() {
+            d.field("class", &self.class);
+        }
+        d.field("spread", &self.spread)
+            .field("spread_scale_m", &self.spread_scale_m)
+            .finish()
+    }
 }
 
 fn default_species_colour() -> [u8; 3] {
@@ -129,7 +168,7 @@ impl Default for Clustering {
 /// the parameters it names, times `1 + spread · n` with `n` a deterministic value noise in
 /// [−1, 1] of wavelength `spread_scale_m` (so a weight is 0 wherever any of its ranges excludes
 /// the pixel).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
     /// Name.
@@ -425,6 +464,41 @@ mod tests {
         };
         assert_eq!(b.weight(1.0), 1.0);
         assert_eq!(b.weight(0.99), 0.0);
+    }
+
+    #[test]
+    fn debug_text_without_class_terms_is_the_text_before_classes() {
+        // The derived text of the fields before classes, written out by hand.
+        let t = Trapezoid {
+            min: 1.0,
+            max: 2.0,
+            falloff: 0.0,
+        };
+        let mut s = Species {
+            name: "a".into(),
+            colour: [1, 2, 3],
+            elevation: Some(t),
+            slope: None,
+            northness: None,
+            wetness: None,
+            class: BTreeMap::new(),
+        };
+        assert_eq!(
+            format!("{s:?}"),
+            "Species { name: \"a\", colour: [1, 2, 3], elevation: Some(Trapezoid { min: 1.0, \
+             max: 2.0, falloff: 0.0 }), slope: None, northness: None, wetness: None }"
+        );
+        s.class.insert("forest".into(), t);
+        assert!(format!("{s:?}").contains("class: {\"forest\""));
+        let mut m = LandscapeConfig::default().materials.remove(0);
+        assert_eq!(
+            format!("{m:?}"),
+            "Material { name: \"ground\", colour: [150, 140, 120], elevation: None, slope: None, \
+             northness: None, curvature: None, wetness: None, vegetation: {}, spread: 0.0, \
+             spread_scale_m: 2000.0 }"
+        );
+        m.class.insert("forest".into(), t);
+        assert!(format!("{m:?}").contains("vegetation: {}, class: {\"forest\""));
     }
 
     #[test]
