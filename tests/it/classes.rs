@@ -219,6 +219,39 @@ fn upload_parts(
     json(&out)["id"].as_str().unwrap().to_string()
 }
 
+/// A multipart upload that must be refused: its status and problem detail.
+fn refused_upload(
+    server: &crate::support::Server,
+    parts: &[(&str, &str, Vec<u8>)],
+) -> (u16, String) {
+    let boundary = "terrasynth-classes-boundary";
+    let mut body = Vec::new();
+    for (part, ct, bytes) in parts {
+        body.extend_from_slice(
+            format!(
+                "--{boundary}\r\nContent-Disposition: form-data; name=\"{part}\"; filename=\"{part}\"\r\nContent-Type: {ct}\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    let (st, out) = post(
+        server,
+        "/admin/exemplars?name=bad",
+        TOKEN,
+        &format!("multipart/form-data; boundary={boundary}"),
+        &body,
+    );
+    let problem = json(&out);
+    assert_eq!(problem["status"], st, "{problem}");
+    (
+        st,
+        problem["detail"].as_str().unwrap_or_default().to_string(),
+    )
+}
+
 /// An 8-bit RGB PNG of `rows × cols` pixels.
 fn rgb_png(rows: usize, cols: usize, px: impl Fn(usize, usize) -> [u8; 3]) -> Vec<u8> {
     let mut out = Vec::new();
@@ -304,6 +337,39 @@ fn bad_control_rasters_are_422_naming_the_problem_and_store_nothing() {
             ("classes", "image/tiff", tiff(&small_classes)),
         ],
     );
+
+    // Control rasters that do not fit are refused at upload, naming the part, storing nothing:
+    // an RGB image or a class raster of another size, an RGB image that is no 8-bit RGB PNG.
+    let before = store_files(&store);
+    let elevation = ("elevation", "image/tiff", tiff(&base));
+    for (parts, status, needle) in [
+        (
+            vec![
+                elevation.clone(),
+                ("rgb", "image/png", rgb_png(32, 32, |_, _| [1, 2, 3])),
+            ],
+            422,
+            "layer `rgb` is 32×32",
+        ),
+        (
+            vec![
+                elevation.clone(),
+                ("classes", "image/tiff", tiff(&small_classes)),
+            ],
+            422,
+            "layer `classes` is 32×32",
+        ),
+        (
+            vec![elevation.clone(), ("rgb", "image/tiff", tiff(&classes))],
+            400,
+            "8-bit RGB or RGBA PNG",
+        ),
+    ] {
+        let (st, detail) = refused_upload(&server, &parts);
+        assert_eq!(st, status, "{needle}: {detail}");
+        assert!(detail.contains(needle), "{needle}: {detail}");
+        assert_eq!(store_files(&store), before, "{needle} wrote to the store");
+    }
 
     let legend = serde_json::json!({"1": "forest", "2": "rock"});
     let materials = serde_json::json!([
