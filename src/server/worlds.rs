@@ -491,7 +491,7 @@ mod tests {
             format!("rgb = \"sat.png\"\n{hsv}"),
         ] {
             let c = with(&classes).unwrap().unwrap();
-            let weights = terrasynth_tiles::ClassWeights::of(&c, &base).unwrap();
+            let weights = terrasynth_tiles::ClassWeights::of(&c, &base, true).unwrap();
             assert_eq!(weights.names(), ["forest", "rock"], "{classes}");
         }
         // Refused by name: a raster without a legend, an RGB image without ranges, a missing
@@ -518,7 +518,7 @@ mod tests {
             ),
         ] {
             let c = with(classes).unwrap().unwrap();
-            let e = terrasynth_tiles::ClassWeights::of(&c, &base)
+            let e = terrasynth_tiles::ClassWeights::of(&c, &base, true)
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(needle), "{classes}: {e}");

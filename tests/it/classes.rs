@@ -49,6 +49,19 @@ fn class_landscape() -> LandscapeConfig {
 /// tile pixel is a base cell), with a class raster: value 10 (`grass`) west of column 128, 20
 /// (`rock`) from it on.
 fn class_world(smoothing_m: f32) -> Result<World, terrasynth_tiles::TileError> {
+    class_world_with(
+        smoothing_m,
+        small_dictionary_with_vegetation(2),
+        Default::default(),
+    )
+}
+
+/// [`class_world`] with its dictionary and matching weights.
+fn class_world_with(
+    smoothing_m: f32,
+    dictionary: std::sync::Arc<terrasynth_core::dictionary::Dictionary>,
+    weights: terrasynth_core::dictionary::MatchWeights,
+) -> Result<World, terrasynth_tiles::TileError> {
     let m = pixel_size_m(Z);
     let half = PI * 6_378_137.0;
     let georef = Georef {
@@ -76,10 +89,9 @@ fn class_world(smoothing_m: f32) -> Result<World, terrasynth_tiles::TileError> {
         max_zoom: 10,
         fill_m: 0.0,
         dictionaries: vec![terrasynth_tiles::DictionaryBand::every_zoom(
-            small_dictionary_with_vegetation(2),
-            "d",
+            dictionary, "d",
         )],
-        weights: Default::default(),
+        weights,
         cache_bytes: 128 << 20,
         landscape: class_landscape(),
         center: None,
@@ -180,6 +192,69 @@ fn species_densities_follow_the_classes() {
             }
         }
     }
+}
+
+/// A dictionary built from synthetic terrain whose west half is class 10 and east half class
+/// 20, with those class layers (`classes_10`, `classes_20`, group `classes`).
+fn class_dictionary() -> std::sync::Arc<terrasynth_core::dictionary::Dictionary> {
+    use terrasynth_core::dictionary::{build, BuildOptions, Exemplar, Learning};
+    use terrasynth_core::landscape::classes::class_layers;
+    let n = 96;
+    let raster = Array2::from_shape_fn((n, n), |(_, c)| if c < n / 2 { 10.0f32 } else { 20.0 });
+    let ex = Exemplar {
+        elevation: synthetic_terrain(n, n, 7),
+        valid: None,
+        cell_m: 30.0,
+        layers: class_layers("classes", &raster, &[10, 20]),
+    };
+    let opts = BuildOptions {
+        patch: 8,
+        stride: 4,
+        atoms: 32,
+        learning: Learning::Medoids { iterations: 2 },
+        seed: 3,
+        sparsity: 1,
+    };
+    std::sync::Arc::new(build(&[ex], &opts, &mut |_, _| {}).unwrap())
+}
+
+#[test]
+fn a_world_weighing_classes_feeds_them_to_the_matching_seamlessly() {
+    let dict = class_dictionary();
+    let elevation_only = terrasynth_core::dictionary::MatchWeights {
+        elevation: 1.0,
+        altitude: 0.0,
+        slope: 0.0,
+        layers: Vec::new(),
+    };
+    let with_classes = terrasynth_core::dictionary::MatchWeights {
+        layers: vec![("classes".into(), 1.0)],
+        ..elevation_only.clone()
+    };
+    let w0 = class_world_with(0.0, dict.clone(), elevation_only).unwrap();
+    let w1 = class_world_with(0.0, dict.clone(), with_classes.clone()).unwrap();
+    let z = Z + 1;
+    // The class term changes the matches, hence the amplified elevation.
+    let (x, y) = (2 * TX, 2 * TY + 1);
+    let a = w0.elevation_tile(z, x, y).unwrap();
+    let b = w1.elevation_tile(z, x, y).unwrap();
+    let differ = a.iter().zip(b.iter()).filter(|(p, q)| p != q).count();
+    assert!(differ > 1000, "{differ} pixels differ");
+    // Still a window of one plane: a fresh world's 2 × 2 block holds the tile alone, bit for
+    // bit, and the vegetation (the same matches) too.
+    let fresh = class_world_with(0.0, dict, with_classes).unwrap();
+    let block = terrasynth_core::synth::Window {
+        col0: i64::from(x) * 256 - 256,
+        row0: i64::from(y) * 256,
+        cols: 512,
+        rows: 512,
+    };
+    let big = fresh.elevation_window(z, block).unwrap();
+    let part = big.slice(ndarray::s![0..256, 256..512]);
+    assert!(part == *b, "the tile alone differs from the block's window");
+    let veg_alone = w1.vegetation_tile(z, x, y).unwrap();
+    let veg_big = fresh.vegetation_window(z, block).unwrap();
+    assert!(veg_big[0].slice(ndarray::s![0..256, 256..512]) == veg_alone[0]);
 }
 
 #[test]
@@ -540,6 +615,31 @@ fn bad_control_rasters_are_422_naming_the_problem_and_store_nothing() {
         !layers.iter().any(|l| l == "classes" || l == "rgb"),
         "{layers:?}"
     );
+    // A world weighing the class term with that dictionary: made and served.
+    let (st, body) = post(
+        &server,
+        "/admin/worlds",
+        TOKEN,
+        "application/json",
+        serde_json::json!({"name": "matched", "base": with_layers, "dictionaries": [id],
+            "max_zoom": 10, "classes": {"legend": legend}, "materials": materials,
+            "weights": {"elevation": 1.0, "classes": 1.0}})
+        .to_string()
+        .as_bytes(),
+    );
+    assert_eq!(st, 201, "{}", String::from_utf8_lossy(&body));
+    let (st, info) = get(&server, "/worlds/matched", None);
+    assert_eq!(st, 200);
+    let info = json(&info);
+    let z = info["native_zoom"].as_u64().unwrap() as u8 + 1;
+    let [w, s, e, n] = [0, 1, 2, 3].map(|i| info["bounds"][i].as_f64().unwrap());
+    let (x, y) = terrasynth_test_support::tile_of(0.5 * (w + e), 0.5 * (s + n), z);
+    let (st, _) = get(
+        &server,
+        &format!("/tiles/matched/elevation/{z}/{x}/{y}.png"),
+        None,
+    );
+    assert_eq!(st, 200);
     for name in ["legend", "satellite"] {
         let (st, info) = get(&server, &format!("/worlds/{name}"), None);
         assert_eq!(st, 200);

@@ -151,16 +151,21 @@ impl VegetationLevels {
                 AnyAmplifier::Gradient(_) => true,
             })
             .collect();
+        let mut layers: Vec<(String, Array2<f32>)> = species
+            .iter()
+            .zip(&parent_veg)
+            .zip(&in_dict)
+            .filter(|(_, &d)| d)
+            .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
+            .collect();
+        // The class probabilities the elevation's matching reads: the same matches.
+        if let AnyAmplifier::Dictionary(_) = amp {
+            layers.extend(self.classes.indicator_window(z - 1, need));
+        }
         let parent = Field {
             window: need,
             elevation: parent_elev,
-            layers: species
-                .iter()
-                .zip(&parent_veg)
-                .zip(&in_dict)
-                .filter(|(_, &d)| d)
-                .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
-                .collect(),
+            layers,
         };
         let field = if in_dict.iter().any(|&d| d) {
             Some(amp.amplify(&parent, w, extent.level_cell_m(z - 1) as f32)?)

@@ -258,7 +258,15 @@ impl World {
     pub fn new(mut parts: WorldParts) -> Result<World, TileError> {
         // Classes lie on the base's grid as given: weighed before the base is reprojected.
         let classes = match &parts.classes {
-            Some(c) => ClassWeights::of(c, &parts.base)?,
+            Some(c) => ClassWeights::of(
+                c,
+                &parts.base,
+                parts
+                    .weights
+                    .layers
+                    .iter()
+                    .any(|(n, w)| n == crate::classes::CLASS_GROUP && *w > 0.0),
+            )?,
             None => ClassWeights::default(),
         };
         parts.landscape.check_classes(&classes.names())?;
@@ -334,6 +342,7 @@ impl World {
                 budget / 2,
                 budget / 64,
                 parts.water.clone(),
+                classes.clone(),
             ),
             whole: WholeWorld::new(landscape.clone(), classes.clone()),
             drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
