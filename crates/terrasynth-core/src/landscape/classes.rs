@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::LandscapeError;
 use crate::dictionary::LayerKind;
+pub use crate::raster::png16::{pack_rgb, unpack_rgb};
 
 /// The HSV ranges of one class, each `[min, max]` inclusive.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -329,21 +330,6 @@ pub fn class_layers(
             )
         })
         .collect()
-}
-
-/// An 8-bit RGB colour packed into one exactly representable `f32`: `r·65536 + g·256 + b`
-/// (the `rgb` layer of an exemplar).
-pub fn pack_rgb(rgb: [u8; 3]) -> f32 {
-    (u32::from(rgb[0]) << 16 | u32::from(rgb[1]) << 8 | u32::from(rgb[2])) as f32
-}
-
-/// The colour of a packed value ([`pack_rgb`]); `None` for values that are no packed colour.
-pub fn unpack_rgb(x: f32) -> Option<[u8; 3]> {
-    if !(x.is_finite() && x.fract() == 0.0 && (0.0..=16_777_215.0).contains(&x)) {
-        return None;
-    }
-    let v = x as u32;
-    Some([(v >> 16) as u8, (v >> 8) as u8, v as u8])
 }
 
 /// The class of one colour: the index of the first class whose ranges hold it.
