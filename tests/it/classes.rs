@@ -640,6 +640,37 @@ fn bad_control_rasters_are_422_naming_the_problem_and_store_nothing() {
         None,
     );
     assert_eq!(st, 200);
+    // An exemplar holding a world's classes cannot be deleted while the world exists.
+    let holder = upload_parts(
+        &server,
+        "holder",
+        &[
+            ("elevation", "image/tiff", tiff(&base)),
+            ("classes", "image/tiff", tiff(&classes)),
+        ],
+    );
+    let (st, body) = post(
+        &server,
+        "/admin/worlds",
+        TOKEN,
+        "application/json",
+        world(
+            "apart",
+            &plain,
+            serde_json::json!({"exemplar": holder, "legend": legend}),
+            &materials,
+        )
+        .to_string()
+        .as_bytes(),
+    );
+    assert_eq!(st, 201, "{}", String::from_utf8_lossy(&body));
+    let (st, body) = terrasynth_test_support::process::delete(
+        &server,
+        &format!("/admin/exemplars/{holder}"),
+        TOKEN,
+    );
+    assert_eq!(st, 409, "{}", String::from_utf8_lossy(&body));
+    assert!(String::from_utf8_lossy(&body).contains("classes of world"));
     for name in ["legend", "satellite"] {
         let (st, info) = get(&server, &format!("/worlds/{name}"), None);
         assert_eq!(st, 200);

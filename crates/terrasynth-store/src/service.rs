@@ -278,6 +278,17 @@ impl Catalogue {
                 def.name
             )));
         }
+        if let Some((_, def)) = self.stored_worlds()?.into_iter().find(|(_, d)| {
+            d.classes
+                .as_ref()
+                .and_then(|c| c.exemplar.as_deref())
+                .is_some_and(|e| e == id)
+        }) {
+            return Err(ServiceError::Conflict(format!(
+                "exemplar `{id}` holds the classes of world `{}`",
+                def.name
+            )));
+        }
         self.catalog.remove_exemplar(id);
         let alias = format!("exemplar.{}", header.name);
         if self.store.alias(&alias)?.as_deref() == Some(id) {
