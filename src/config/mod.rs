@@ -308,6 +308,9 @@ pub struct WorldConfig {
     /// Lake minima and water colours (`[water]`).
     #[serde(default)]
     pub water: terrasynth_core::landscape::WaterConfig,
+    /// Land-cover classes (`[classes]`) for the materials' `class.<name>` terms.
+    #[serde(default)]
+    pub classes: Option<ClassesFile>,
     /// Dictionary build settings of a world with one dictionary (`[dictionary]`: every amplified
     /// zoom).
     #[serde(default)]
@@ -326,6 +329,42 @@ pub struct WorldConfig {
     /// Directory the world file's relative paths are resolved against (set when loading).
     #[serde(skip)]
     pub dir: PathBuf,
+}
+
+/// The `[classes]` of a world file: a class raster with its legend, or an RGB image with HSV
+/// ranges, on the base's grid.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ClassesFile {
+    /// A class raster: a GeoTIFF of integers on the base's grid (path relative to the world
+    /// file), with `legend`.
+    #[serde(default)]
+    pub raster: Option<String>,
+    /// An RGB image: an 8-bit RGB(A) PNG of the base's size, placed on the base's grid
+    /// (transparent pixels: no class), with `hsv`.
+    #[serde(default)]
+    pub rgb: Option<String>,
+    /// The class raster's legend, `"value" = "name"`.
+    #[serde(default)]
+    pub legend: std::collections::BTreeMap<String, String>,
+    /// The RGB image's classes: `[[classes.hsv]]` with `name` and `hsv = { h = [min, max], s =
+    /// [min, max], v = [min, max] }`.
+    #[serde(default)]
+    pub hsv: Vec<terrasynth_core::landscape::HsvClass>,
+    /// Distance, metres, over which a class weight falls from 1 to 0 across a border.
+    #[serde(default)]
+    pub smoothing_m: f32,
+}
+
+impl ClassesFile {
+    /// The classes' settings.
+    pub fn config(&self) -> terrasynth_core::landscape::ClassesConfig {
+        terrasynth_core::landscape::ClassesConfig {
+            legend: self.legend.clone(),
+            hsv: self.hsv.clone(),
+            smoothing_m: self.smoothing_m,
+        }
+    }
 }
 
 fn default_max_zoom() -> u8 {
@@ -471,6 +510,18 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
     }
     w.landscape
         .validate()
+        .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
+    let class_names = match &w.classes {
+        None => Vec::new(),
+        Some(c) => {
+            let cfg = c.config();
+            cfg.validate()
+                .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
+            cfg.names()
+        }
+    };
+    w.landscape
+        .check_classes(&class_names)
         .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_dictionaries(&w, text, path)?;
     check_amplifiers(&w, text, path)?;

@@ -18,9 +18,9 @@ use terrasynth_core::dictionary::{
     ExemplarOptions, GradientTileSet, Learning,
 };
 use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
-use terrasynth_core::raster::{embedded, read_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::raster::{embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
-use terrasynth_tiles::{DictionaryBand, TileError, World, WorldParts};
+use terrasynth_tiles::{DictionaryBand, TileError, World, WorldClasses, WorldParts};
 
 use super::error::StartupError;
 use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_CARRIZO, EMBEDDED_TIENSHAN};
@@ -45,6 +45,35 @@ fn load_raster(spec: &str, dir: &Path) -> Result<Grid, String> {
     }
     let path = dir.join(spec);
     read_geotiff_file(&path, &ReadLimits::default()).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The land-cover classes of world file `wc` on its base `base` (`None` without `[classes]`):
+/// the `raster` GeoTIFF with a `legend`, or the `rgb` PNG (placed on the base's grid) with `hsv`.
+fn load_classes(wc: &WorldConfig, base: &Grid) -> Result<Option<WorldClasses>, String> {
+    let Some(c) = &wc.classes else {
+        return Ok(None);
+    };
+    let raster = match (&c.raster, &c.rgb, c.hsv.is_empty()) {
+        (Some(path), None, true) => {
+            load_raster(path, &wc.dir).map_err(|e| format!("classes.raster: {e}"))?
+        }
+        (None, Some(path), false) => {
+            let path = wc.dir.join(path);
+            let bytes = std::fs::read(&path)
+                .map_err(|e| format!("classes.rgb: {}: {e}", path.display()))?;
+            read_png_rgb(&bytes, base.georef, &ReadLimits::default())
+                .map_err(|e| format!("classes.rgb: {}: {e}", path.display()))?
+        }
+        _ => {
+            return Err(
+                "[classes] takes `raster` with a `legend`, or `rgb` with `hsv` ranges".into(),
+            )
+        }
+    };
+    Ok(Some(WorldClasses {
+        config: c.config(),
+        raster,
+    }))
 }
 
 /// A stable name for the dictionary (or gradient tile set) a world's settings `d` produce (one of
@@ -246,6 +275,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
     for wc in &config.worlds {
         let t = Instant::now();
         let base = load_raster(&wc.base, &wc.dir).map_err(world_error(wc))?;
+        let classes = load_classes(wc, &base).map_err(world_error(wc))?;
         tracing::info!(world = %wc.name, rows = base.rows(), cols = base.cols(), "world: base loaded");
         let mut dictionaries = Vec::new();
         for (zooms, cfg) in wc.dictionary_bands() {
@@ -278,6 +308,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
                 sea_level_m: wc.sea_level_m,
                 ..wc.water.clone()
             },
+            classes,
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         if let Some(why) = share_shortfall(&world) {
@@ -318,6 +349,9 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
             sea_level_m: def.sea_level_m,
             ..def.water.clone().unwrap_or_default()
         },
+        classes: resolved
+            .classes
+            .map(|(config, raster)| WorldClasses { config, raster }),
         name: def.name,
     })
 }
@@ -410,6 +444,93 @@ mod tests {
         assert!(spruce_values.contains(&0.7f32.to_bits()));
         // Juniper keeps its niche-model layer: more than the raster's three values.
         assert!(juniper_values.len() > 3, "{juniper_values:?}");
+    }
+
+    #[test]
+    fn world_files_take_a_class_raster_or_an_rgb_image_on_the_base_grid() {
+        let dir = tempfile::tempdir().unwrap();
+        let w = world_with(dir.path(), "");
+        let base = load_raster(&w.base, &w.dir).unwrap();
+        // A class raster: 1 on the west half, 2 on the east half.
+        write_density(
+            dir.path(),
+            "lc.tif",
+            96,
+            |_, c| if c < 48 { 1.0 } else { 2.0 },
+        );
+        write_density(dir.path(), "lc_small.tif", 64, |_, _| 1.0);
+        // An RGB image: green west, grey east.
+        let mut png = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut png, 96, 96);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut wr = enc.write_header().unwrap();
+            let data: Vec<u8> = (0..96 * 96)
+                .flat_map(|i| {
+                    if i % 96 < 48 {
+                        [30, 100, 40]
+                    } else {
+                        [150, 150, 150]
+                    }
+                })
+                .collect();
+            wr.write_image_data(&data).unwrap();
+        }
+        std::fs::write(dir.path().join("sat.png"), png).unwrap();
+        let with = |classes: &str| {
+            let mut w = w.clone();
+            w.classes = Some(toml::from_str(classes).unwrap());
+            load_classes(&w, &base)
+        };
+        let hsv =
+            "hsv = [{ name = \"forest\", hsv = { h = [70, 170], s = [0.2, 1], v = [0, 0.6] } }, \
+                   { name = \"rock\", hsv = { h = [0, 360], s = [0, 0.1], v = [0.3, 1] } }]";
+        for classes in [
+            "raster = \"lc.tif\"\nlegend = { \"1\" = \"forest\", \"2\" = \"rock\" }".to_string(),
+            format!("rgb = \"sat.png\"\n{hsv}"),
+        ] {
+            let c = with(&classes).unwrap().unwrap();
+            let weights = terrasynth_tiles::ClassWeights::of(&c, &base, true).unwrap();
+            assert_eq!(weights.names(), ["forest", "rock"], "{classes}");
+        }
+        // Refused by name: a raster without a legend, an RGB image without ranges, a missing
+        // file; a raster off the base's grid or a legend missing a value when weighed.
+        for (classes, needle) in [
+            (format!("raster = \"lc.tif\"\n{hsv}"), "[classes] takes"),
+            ("rgb = \"sat.png\"".to_string(), "[classes] takes"),
+            (
+                "raster = \"nope.tif\"\nlegend = { \"1\" = \"a\" }".into(),
+                "nope.tif",
+            ),
+        ] {
+            let e = with(&classes).unwrap_err();
+            assert!(e.contains(needle), "{classes}: {e}");
+        }
+        for (classes, needle) in [
+            (
+                "raster = \"lc_small.tif\"\nlegend = { \"1\" = \"a\" }",
+                "base's grid",
+            ),
+            (
+                "raster = \"lc.tif\"\nlegend = { \"1\" = \"a\" }",
+                "raster value 2",
+            ),
+        ] {
+            let c = with(classes).unwrap().unwrap();
+            let e = terrasynth_tiles::ClassWeights::of(&c, &base, true)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{classes}: {e}");
+        }
+        // A material naming a class the file does not define is a configuration error.
+        let text = "name = \"t\"\nbase = \"hills.tif\"\n[classes]\nraster = \"lc.tif\"\n\
+                    legend = { \"1\" = \"forest\" }\n[landscape]\n[[landscape.materials]]\n\
+                    name = \"bog\"\ncolour = [0, 0, 0]\nclass.wetland = { min = 0.5, max = 1 }\n";
+        let e = crate::config::parse_world(text, "t.toml", dir.path())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unknown class `wetland`"), "{e}");
     }
 
     #[test]

@@ -18,6 +18,8 @@
 //!   borders, coherence with the layers and the ground, counts following the density;
 //! - [`tile_hashes`]: the default world's tiles are byte-identical to a committed list;
 //! - [`coverage`]: overlays are transparent exactly outside a small base and in its hole (#15);
+//! - [`classes`]: land-cover classes (#15): splat weights following a class raster by pixel,
+//!   bad control rasters refused with 422 on the real binary;
 //! - [`water`]: sea and lakes (#15): flat lake surfaces and beds, drainage ending at the shore,
 //!   seamless and deterministic water tiles;
 //! - [`webp`]: lossless WebP tiles carry the PNG tiles' pixels;
@@ -32,6 +34,7 @@
 
 mod admin;
 mod admin_e2e;
+mod classes;
 mod cli;
 mod contours;
 mod coverage;

@@ -788,6 +788,7 @@ fn splat_weights_sum_to_255_and_vanish_outside_their_ranges() {
         curvature: &curvature,
         wetness: &wetness,
         vegetation: &vegetation,
+        classes: &[],
         origin: (1000, -3000),
         pixel_m: 150.0,
     };
@@ -860,6 +861,7 @@ fn a_world_on_a_utm_base_lies_where_the_data_lies() {
         center: None,
         sparsity: None,
         water: Default::default(),
+        classes: None,
     })
     .unwrap();
     let [w, s, e, n] = world.bounds();

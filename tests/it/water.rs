@@ -86,6 +86,7 @@ fn lake_world() -> World {
             lakes: true,
             ..Default::default()
         },
+        classes: None,
     })
     .unwrap()
 }
@@ -320,6 +321,7 @@ fn coast_world() -> World {
             sea_level_m: Some(COAST_LEVEL),
             ..Default::default()
         },
+        classes: None,
     })
     .unwrap()
 }

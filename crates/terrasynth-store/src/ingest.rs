@@ -1,5 +1,6 @@
 //! Decoding an uploaded exemplar: a GeoTIFF, 16-bit PNG or OpenEXR file, or an `elevation`
-//! raster and named layer rasters on the same grid. Everything goes through the core readers,
+//! raster and named layer rasters on the same grid; a part named `rgb` is an 8-bit RGB(A) PNG (a
+//! satellite image for land-cover classes) stored as the layer `rgb` of packed `0xRRGGBB` values. Everything goes through the core readers,
 //! which check the header against the limits before allocating; this module adds the
 //! width/height limit, the layer checks and the "some elevation is valid" rule.
 //!
@@ -14,8 +15,8 @@ use std::path::{Path, PathBuf};
 
 use terrasynth_core::names::{is_valid_name, NAME_RULE};
 use terrasynth_core::raster::{
-    read_exr, read_geotiff, read_png16, sniff, Georef, LayeredRaster, RasterError, RasterFormat,
-    ReadLimits, ELEVATION,
+    read_exr, read_geotiff, read_png16, read_png_rgb, sniff, Georef, LayeredRaster, RasterError,
+    RasterFormat, ReadLimits, ELEVATION,
 };
 
 use crate::budget::{MemoryBudget, Reservation};
@@ -166,17 +167,24 @@ fn tiff_estimate(r: impl Read + Seek) -> Option<(u64, u64)> {
     Some((bits.div_ceil(8) + 4 + 1, u64::from(w) * u64::from(h)))
 }
 
-/// `(bytes per pixel at the peak, pixels)` of a PNG (read from its IHDR chunk): the 16-bit
-/// samples and their `f32` copy.
+/// `(bytes per pixel at the peak, pixels)` of a PNG (read from its IHDR chunk): the samples
+/// (16-bit grey, or 8-bit RGB(A) of an `rgb` part), their `f32` copy and the mask.
 fn png_estimate(mut r: impl Read) -> Option<(u64, u64)> {
-    let mut head = [0u8; 24];
+    let mut head = [0u8; 26];
     r.read_exact(&mut head).ok()?;
     if &head[12..16] != b"IHDR" {
         return None;
     }
     let w = u32::from_be_bytes([head[16], head[17], head[18], head[19]]);
     let h = u32::from_be_bytes([head[20], head[21], head[22], head[23]]);
-    Some((2 + 4 + 1, u64::from(w) * u64::from(h)))
+    // Colour type 2 (RGB) and 6 (RGBA) at 8 bits: 3 or 4 bytes; anything else is read as (or
+    // refused before) 16-bit grey.
+    let samples = match (head[24], head[25]) {
+        (8, 2) => 3,
+        (8, 6) => 4,
+        _ => 2,
+    };
+    Some((samples + 4 + 1, u64::from(w) * u64::from(h)))
 }
 
 /// `(bytes per pixel at the peak, pixels)` of an OpenEXR file: every channel's samples and their
@@ -233,16 +241,54 @@ pub fn decode_spooled(
             continue;
         }
         check_layer_name(&p.name)?;
-        let r = decode_raster(
-            &what(p),
-            &read(p)?,
-            p.format,
-            Some(elevation.georef),
-            limits,
-        )?;
+        let r = if p.name == RGB_LAYER {
+            decode_rgb(&what(p), &read(p)?, p.format, elevation.georef, limits)?
+        } else {
+            decode_raster(
+                &what(p),
+                &read(p)?,
+                p.format,
+                Some(elevation.georef),
+                limits,
+            )?
+        };
         layers.push((p.name.clone(), r));
     }
     Ok((assemble(elevation, layers, limits)?, reservation))
+}
+
+/// The name of the part (and layer) of an RGB image: packed `0xRRGGBB` colours.
+pub const RGB_LAYER: &str = "rgb";
+
+/// Decodes an `rgb` part: an 8-bit RGB or RGBA PNG on the elevation's grid, as packed colours.
+fn decode_rgb(
+    what: &str,
+    bytes: &[u8],
+    claimed: UploadFormat,
+    georef: Georef,
+    limits: &UploadLimits,
+) -> Result<LayeredRaster, ServiceError> {
+    if !matches!(claimed, UploadFormat::Png | UploadFormat::Sniff)
+        || sniff(bytes) != Some(RasterFormat::Png)
+    {
+        return Err(ServiceError::Undecodable(format!(
+            "{what} is undecodable: an `rgb` part is an 8-bit RGB or RGBA PNG"
+        )));
+    }
+    let mut grid = read_png_rgb(bytes, georef, &limits.read).map_err(|e| raster_error(what, e))?;
+    // A layer keeps no mask of its own: transparent pixels become NaN (no class).
+    if let Some(valid) = grid.valid.take() {
+        ndarray::Zip::from(&mut grid.data)
+            .and(&valid)
+            .for_each(|v, &ok| {
+                if !ok {
+                    *v = f32::NAN;
+                }
+            });
+    }
+    let raster = LayeredRaster::from_elevation(grid);
+    check_raster(what, &raster, limits)?;
+    Ok(raster)
 }
 
 /// Checks dimensions, layer count, georeference and that some elevation is valid.

@@ -29,6 +29,8 @@ use crate::exemplar;
 use crate::sketch::{run_sketch, SketchFailure, SketchRequest};
 use crate::store::{ObjectKind, Store};
 use crate::time::now_rfc3339;
+use crate::worlds::CLASSES_LAYER;
+use terrasynth_core::landscape::classes::{class_layers, class_values, MAX_CLASSES};
 
 /// State of a job.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
@@ -393,6 +395,8 @@ impl Jobs {
         let landscape = species_landscape(&self.inner.landscape, request.species.as_deref())
             .map_err(|e| params(e.to_string()))?;
         let mut exemplars: Vec<Exemplar> = Vec::new();
+        // Each exemplar's `classes` layer, made into class layers once every value is known.
+        let mut class_rasters: Vec<Option<ndarray::Array2<f32>>> = Vec::new();
         for (i, ex_id) in request.exemplars.iter().enumerate() {
             let payload = self
                 .inner
@@ -405,7 +409,24 @@ impl Jobs {
                 .elevation()
                 .ok_or_else(|| params(format!("exemplar {ex_id} has no elevation")))?;
             let mut extra = Vec::new();
+            let mut class_raster = None;
             for (name, data) in raster.layers.iter().skip(1) {
+                if name == CLASSES_LAYER {
+                    let mut d = data.clone();
+                    if let Some(valid) = &raster.valid {
+                        ndarray::Zip::from(&mut d).and(valid).for_each(|v, &ok| {
+                            if !ok {
+                                *v = f32::NAN;
+                            }
+                        });
+                    }
+                    class_raster = Some(d);
+                    continue;
+                }
+                if name == crate::ingest::RGB_LAYER {
+                    // Packed colours are no quantity to match: the image is for worlds' classes.
+                    continue;
+                }
                 let g = terrasynth_core::raster::Grid {
                     data: data.clone(),
                     georef: raster.georef,
@@ -430,12 +451,14 @@ impl Jobs {
                 species
             })?;
             exemplars.push(ex);
+            class_rasters.push(class_raster);
             if cancel.load(Ordering::Relaxed) {
                 return Err(BuildFailure::Cancelled);
             }
             let n = request.exemplars.len() as f64;
             self.set_progress(id, "reading", 0.1 * (i as f64 + 1.0) / n);
         }
+        add_class_layers(&mut exemplars, &class_rasters, &request.exemplars).map_err(params)?;
         let opts = build_options(request).map_err(|e| params(e.to_string()))?;
         let mut last = std::time::Instant::now();
         let d = build_cancellable(&exemplars, &opts, cancel, &mut |stage, f| {
@@ -794,4 +817,45 @@ fn new_id(salt: &str) -> String {
     let seq = SEQ.fetch_add(1, Ordering::Relaxed);
     let digest = Sha256::digest(format!("{nanos}|{}|{seq}|{salt}", std::process::id()));
     crate::object::hex(&digest[..8])
+}
+
+/// The class layers of a build's exemplars (`LayerKind::Class`, group `classes`, one layer per
+/// raster value, see [`class_layers`]): when any exemplar has a `classes` layer, every one must,
+/// and each gets a layer for every value of all of them (so that the layers agree).
+fn add_class_layers(
+    exemplars: &mut [Exemplar],
+    rasters: &[Option<ndarray::Array2<f32>>],
+    ids: &[String],
+) -> Result<(), String> {
+    if rasters.iter().all(Option::is_none) {
+        return Ok(());
+    }
+    let mut values = std::collections::BTreeSet::new();
+    for (r, id) in rasters.iter().zip(ids) {
+        let r = r.as_ref().ok_or_else(|| {
+            format!(
+                "exemplar {id} has no `{CLASSES_LAYER}` layer: every exemplar of a build with \
+                 class layers needs one"
+            )
+        })?;
+        values.extend(class_values(r).map_err(|e| format!("exemplar {id}: {e}"))?);
+    }
+    let values: Vec<u16> = values.into_iter().collect();
+    if values.len() > MAX_CLASSES {
+        return Err(format!(
+            "the class rasters hold {} values (at most {MAX_CLASSES})",
+            values.len()
+        ));
+    }
+    for (ex, r) in exemplars.iter_mut().zip(rasters.iter().flatten()) {
+        if r.dim() != ex.elevation.dim() {
+            return Err(format!(
+                "the `{CLASSES_LAYER}` layer is {:?}, the exemplar {:?}",
+                r.dim(),
+                ex.elevation.dim()
+            ));
+        }
+        ex.layers.extend(class_layers(CLASSES_LAYER, r, &values));
+    }
+    Ok(())
 }

@@ -17,7 +17,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use terrasynth_core::dictionary::{AmplifierKind, AnyDictionary};
-use terrasynth_core::landscape::LandscapeConfig;
+use terrasynth_core::landscape::{ClassesConfig, LandscapeConfig};
 use terrasynth_core::names::is_content_id;
 use terrasynth_core::raster::{Grid, LayeredRaster};
 use terrasynth_core::synth::sketch::SizeLimits;
@@ -32,7 +32,9 @@ use crate::jobs::{
 };
 use crate::sketch::SketchRequest;
 use crate::store::{ObjectKind, Store, Stored};
-use crate::worlds::{check_name, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest};
+use crate::worlds::{
+    check_name, WorldClassesRef, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest,
+};
 
 /// Most exemplars one build may read.
 pub const MAX_BUILD_EXEMPLARS: usize = 64;
@@ -57,6 +59,9 @@ pub struct ResolvedWorld {
     pub dictionaries: Vec<ResolvedDictionary>,
     /// The landscape (defaults with the definition's materials and species).
     pub landscape: LandscapeConfig,
+    /// The land-cover classes' settings and raster (on the base's grid), when the world has
+    /// classes.
+    pub classes: Option<(ClassesConfig, Grid)>,
 }
 
 /// One dictionary of a resolved world's chain.
@@ -273,6 +278,17 @@ impl Catalogue {
                 def.name
             )));
         }
+        if let Some((_, def)) = self.stored_worlds()?.into_iter().find(|(_, d)| {
+            d.classes
+                .as_ref()
+                .and_then(|c| c.exemplar.as_deref())
+                .is_some_and(|e| e == id)
+        }) {
+            return Err(ServiceError::Conflict(format!(
+                "exemplar `{id}` holds the classes of world `{}`",
+                def.name
+            )));
+        }
         self.catalog.remove_exemplar(id);
         let alias = format!("exemplar.{}", header.name);
         if self.store.alias(&alias)?.as_deref() == Some(id) {
@@ -479,6 +495,10 @@ impl Catalogue {
         let base = raster
             .elevation()
             .ok_or_else(|| ServiceError::Invalid("the base has no elevation".into()))?;
+        let classes = match &def.classes {
+            None => None,
+            Some(c) => Some((c.config(), self.class_raster(c, &def.base, &raster)?)),
+        };
         let mut dictionaries = Vec::with_capacity(bands.len());
         for (i, ((zooms, id), entry)) in bands.into_iter().zip(&def.dictionaries).enumerate() {
             let dictionary = self
@@ -498,7 +518,56 @@ impl Catalogue {
             base,
             dictionaries,
             landscape,
+            classes,
         })
+    }
+
+    /// The raster of a world's classes: layer [`WorldClassesRef::layer`] of exemplar
+    /// `c.exemplar` (default: the base, `base` decoded as `base_raster`), which must lie on the
+    /// base's grid; invalid cells are NaN (no class).
+    fn class_raster(
+        &self,
+        c: &WorldClassesRef,
+        base: &str,
+        base_raster: &LayeredRaster,
+    ) -> Result<Grid, ServiceError> {
+        let id = c.exemplar.as_deref().unwrap_or(base);
+        let other;
+        let raster = if id == base {
+            base_raster
+        } else {
+            let unknown =
+                || ServiceError::Invalid(format!("classes.exemplar: unknown exemplar `{id}`"));
+            let payload = match self.store.get_object(ObjectKind::Exemplar, id) {
+                Ok(p) => p.ok_or_else(unknown)?,
+                Err(StoreError::BadName(_)) => return Err(unknown()),
+                Err(e) => return Err(e.into()),
+            };
+            other = exemplar::decode(&payload)?.1;
+            if other.dim() != base_raster.dim() || other.georef != base_raster.georef {
+                let ((r, c), (br, bc)) = (other.dim(), base_raster.dim());
+                return Err(ServiceError::Invalid(format!(
+                    "classes.exemplar `{id}` is {c}×{r} at {:?}: the class raster must lie on the \
+                     base's grid, {bc}×{br} at {:?}",
+                    other.georef, base_raster.georef
+                )));
+            }
+            &other
+        };
+        let layer = c.layer();
+        let mut data = raster.layer(layer).cloned().ok_or_else(|| {
+            ServiceError::Invalid(format!(
+                "classes: exemplar `{id}` has no `{layer}` layer (upload it as a `{layer}` part)"
+            ))
+        })?;
+        if let Some(valid) = &raster.valid {
+            ndarray::Zip::from(&mut data).and(valid).for_each(|v, &ok| {
+                if !ok {
+                    *v = f32::NAN;
+                }
+            });
+        }
+        Ok(Grid::new(data, raster.georef))
     }
 
     /// Creates world `def`: checks that its name is free (not configured, not `served`, not
@@ -574,6 +643,7 @@ impl Catalogue {
                 sea_level_m: None,
                 water: None,
                 scatter: None,
+                classes: None,
             },
             &self.defaults,
         )?;

@@ -8,7 +8,9 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use terrasynth_core::dictionary::{AmplifierKind, MatchWeights};
-use terrasynth_core::landscape::{LandscapeConfig, Material, ScatterRule, Species, WaterConfig};
+use terrasynth_core::landscape::{
+    ClassesConfig, HsvClass, LandscapeConfig, Material, ScatterRule, Species, WaterConfig,
+};
 use terrasynth_core::names::{is_content_id, is_valid_name, NAME_RULE};
 use terrasynth_core::raster::georef::{is_map_point, MAX_MERCATOR_LAT};
 use terrasynth_core::synth::{check_bands, ZoomBand};
@@ -63,7 +65,59 @@ pub struct WorldDefinition {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<Object>>)]
     pub scatter: Option<Vec<ScatterRule>>,
+    /// Land-cover classes for the materials' `class.<name>` terms; absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub classes: Option<WorldClassesRef>,
 }
+
+/// A world's land-cover classes: a class raster with its legend, or an RGB image with HSV ranges,
+/// taken from an exemplar's layer on the base's grid.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WorldClassesRef {
+    /// Exemplar holding the raster: its `classes` layer (with `legend`) or its `rgb` layer (with
+    /// `hsv`), on the base's grid (same size and georeference); absent: the base exemplar.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exemplar: Option<String>,
+    /// The class raster's legend, `{"value": "name"}` (values are integers 0–65535; every value
+    /// of the raster must have an entry; several values may name one class).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    #[schema(value_type = Object, example = json!({"1": "forest", "2": "rock"}))]
+    pub legend: BTreeMap<String, String>,
+    /// The RGB image's classes, `[{"name", "hsv": {"h": [min, max], "s": [min, max], "v": [min,
+    /// max]}}]`: hue in degrees 0–360 (`min > max` wraps through 0°), saturation and value 0–1;
+    /// a pixel takes the first class whose ranges hold it, else none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schema(value_type = Vec<Object>)]
+    pub hsv: Vec<HsvClass>,
+    /// Distance, metres, over which a class weight falls from 1 to 0 across a class border
+    /// (default 0: sharp; at most 64 base cells each way).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub smoothing_m: f32,
+}
+
+impl WorldClassesRef {
+    /// The classes' settings (legend or HSV ranges, smoothing).
+    pub fn config(&self) -> ClassesConfig {
+        ClassesConfig {
+            legend: self.legend.clone(),
+            hsv: self.hsv.clone(),
+            smoothing_m: self.smoothing_m,
+        }
+    }
+
+    /// The exemplar layer holding the raster: `rgb` with HSV ranges, else `classes`.
+    pub fn layer(&self) -> &'static str {
+        if self.hsv.is_empty() {
+            CLASSES_LAYER
+        } else {
+            crate::ingest::RGB_LAYER
+        }
+    }
+}
+
+/// The exemplar layer of a class raster.
+pub const CLASSES_LAYER: &str = "classes";
 
 /// Whether a fill is the default (not written, so definitions stored before it read the same).
 fn is_zero(v: &f32) -> bool {
@@ -145,6 +199,14 @@ pub struct WorldRequest {
     #[serde(default)]
     #[schema(value_type = Option<Vec<Object>>)]
     pub scatter: Option<Vec<ScatterRule>>,
+    /// Land-cover classes (default: none): `{"exemplar", "legend", "hsv", "smoothing_m"}` — a
+    /// class raster (the exemplar's `classes` layer, uploaded as a `classes` part) with a
+    /// `legend` `{"value": "name"}`, or an RGB image (its `rgb` layer, uploaded as an `rgb`
+    /// part: an 8-bit RGB(A) PNG) with `hsv` ranges per class; `exemplar` defaults to the base
+    /// and must lie on its grid. Materials and species weigh classes with `"class": {"name":
+    /// {"min", "max", "falloff"}}`. Checked: 422 naming the problem.
+    #[serde(default)]
+    pub classes: Option<WorldClassesRef>,
 }
 
 /// One entry of a world's `dictionaries`: a bare dictionary id (every amplified zoom; worlds
@@ -312,7 +374,19 @@ impl WorldDefinition {
             sea_level_m: r.sea_level_m,
             water: r.water,
             scatter: r.scatter,
+            classes: r.classes,
         };
+        if let Some(c) = &def.classes {
+            c.config()
+                .validate()
+                .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+            if c.exemplar.as_ref().is_some_and(|e| !is_content_id(e)) {
+                return Err(ServiceError::Invalid(format!(
+                    "classes.exemplar: unknown exemplar `{}`",
+                    c.exemplar.as_deref().unwrap_or_default()
+                )));
+            }
+        }
         if let Some(w) = &def.water {
             w.validate()
                 .map_err(|e| ServiceError::Invalid(e.to_string()))?;
@@ -444,6 +518,13 @@ impl WorldDefinition {
             }
         }
         l.validate()
+            .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+        let class_names = self
+            .classes
+            .as_ref()
+            .map(|c| c.config().names())
+            .unwrap_or_default();
+        l.check_classes(&class_names)
             .map_err(|e| ServiceError::Invalid(e.to_string()))?;
         Ok(l)
     }

@@ -178,6 +178,7 @@ pub fn mini_world_bands(
         center: None,
         sparsity: None,
         water: terrasynth_core::landscape::WaterConfig::default(),
+        classes: None,
     })
 }
 

@@ -10,6 +10,8 @@ use ndarray::{s, Array2};
 
 use terrasynth_core::analysis;
 use terrasynth_core::landscape::{vegetation, LandscapeConfig};
+
+use crate::classes::ClassWeights;
 use terrasynth_core::synth::Window;
 
 use crate::cancel::uncancellable;
@@ -70,14 +72,16 @@ fn cut_at(a: &Array2<f32>, aw: Window, w: Window, r: usize, c: usize) -> f32 {
 #[derive(Debug)]
 pub struct WholeWorld {
     landscape: Arc<LandscapeConfig>,
+    classes: Arc<ClassWeights>,
     layers: OnceLock<Result<Arc<BaseLayers>, TileError>>,
 }
 
 impl WholeWorld {
     /// The whole-world layers of a world with this landscape, not computed yet.
-    pub fn new(landscape: Arc<LandscapeConfig>) -> Self {
+    pub fn new(landscape: Arc<LandscapeConfig>, classes: Arc<ClassWeights>) -> Self {
         WholeWorld {
             landscape,
+            classes,
             layers: OnceLock::new(),
         }
     }
@@ -86,7 +90,9 @@ impl WholeWorld {
     /// is kept for ever, so an abandoned request must not leave a cancellation in its place).
     pub fn get(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
         self.layers
-            .get_or_init(|| uncancellable(|| compute(elevation, &self.landscape).map(Arc::new)))
+            .get_or_init(|| {
+                uncancellable(|| compute(elevation, &self.landscape, &self.classes).map(Arc::new))
+            })
             .clone()
     }
 }
@@ -94,6 +100,7 @@ impl WholeWorld {
 fn compute(
     elevation: &ElevationLevels,
     landscape: &LandscapeConfig,
+    classes: &ClassWeights,
 ) -> Result<BaseLayers, TileError> {
     let extent = elevation.extent();
     let z = extent.z_base;
@@ -131,12 +138,18 @@ fn compute(
     let wetness = analysis::log_upstream_area(&area64);
     let area = area64.mapv(|v| v as f32);
     drop(area64);
+    let class_weights = if landscape.species.iter().any(|s| !s.class.is_empty()) {
+        classes.window(z, window)
+    } else {
+        Vec::new()
+    };
     let vegetation = vegetation::densities(
         landscape,
         &heights,
         &cells,
         &wetness,
         (window.row0, window.col0),
+        &class_weights,
     );
     Ok(BaseLayers {
         window,

@@ -38,6 +38,7 @@ use terrasynth_core::synth::{AnyAmplifier, Field, Level, Window};
 
 use crate::cancel::uncancellable;
 use crate::chain::Chain;
+use crate::classes::ClassWeights;
 use crate::coverage::CoverageLevels;
 use crate::error::TileError;
 use crate::extent::Extent;
@@ -53,6 +54,8 @@ pub struct ElevationLevels {
     cache: LevelCache<Array2<f32>>,
     coverage: CoverageLevels,
     water: WaterConfig,
+    /// The world's class probabilities for the matching's class term.
+    classes: Arc<ClassWeights>,
     base_water: OnceLock<Result<Option<Arc<BaseWater>>, TileError>>,
     prefill: Prefill,
     /// This levels' own handle, for the background thread of [`Prefill`].
@@ -128,7 +131,9 @@ impl std::fmt::Debug for ElevationLevels {
 impl ElevationLevels {
     /// Levels over `base` (outside it: `fill_m`), each zoom amplified with its band's amplifier
     /// of `amplifiers`, cached in at most `cache_bytes` bytes (the coverage overviews in at most
-    /// `coverage_bytes` more), with the sea and lakes of `water`.
+    /// `coverage_bytes` more), with the sea and lakes of `water`; `classes`: the class
+    /// probabilities its matching reads (none: elevation only).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         base: Grid,
         fill_m: f32,
@@ -137,6 +142,7 @@ impl ElevationLevels {
         cache_bytes: u64,
         coverage_bytes: u64,
         water: WaterConfig,
+        classes: Arc<ClassWeights>,
     ) -> Arc<Self> {
         let coverage = CoverageLevels::new(&base, coverage_bytes);
         Arc::new_cyclic(|me| ElevationLevels {
@@ -145,6 +151,7 @@ impl ElevationLevels {
             extent,
             amplifiers,
             water,
+            classes,
             base_water: OnceLock::new(),
             coverage,
             cache: LevelCache::new(cache_bytes),
@@ -316,7 +323,16 @@ impl ElevationLevels {
         if crate::cancel::is_cancelled() {
             return Err(TileError::Cancelled);
         }
-        let parent = Field::elevation_only(need, parent);
+        // The world's class probabilities, for a dictionary's class term (none: elevation only).
+        let layers = match amplifier {
+            AnyAmplifier::Dictionary(_) => self.classes.indicator_window(z - 1, need),
+            AnyAmplifier::Gradient(_) => Vec::new(),
+        };
+        let parent = Field {
+            window: need,
+            elevation: parent,
+            layers,
+        };
         let field = amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
         let mut out = field.elevation;
         // Outside the coverage the elevation is the fill, exactly (no detail over no data).

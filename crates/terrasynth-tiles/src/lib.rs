@@ -19,6 +19,7 @@
 pub mod base_layers;
 pub mod cancel;
 pub mod chain;
+pub mod classes;
 pub mod contours;
 pub mod coverage;
 pub mod drainage;
@@ -43,6 +44,7 @@ pub mod world;
 
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use chain::{Chain, DictionaryBand};
+pub use classes::{ClassWeights, WorldClasses};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
     encode_mapbox_png, encode_mapbox_webp, encode_rgba_png, encode_rgba_webp, encode_terrarium_png,

@@ -1,12 +1,13 @@
 //! Splat weights and the colour map's inputs for a tile (with the `water` material of submerged
 //! pixels, see [`crate::water`]): per-pixel functions of the tile's
 //! elevation (slope, northness and curvature from a one-pixel border), wetness (log10 of the
-//! drainage) and vegetation, so they are seamless and deterministic whenever those are.
+//! drainage), vegetation and land-cover class weights ([`crate::classes`]), so they are seamless and deterministic whenever those are.
 
 use ndarray::Array2;
 
 use terrasynth_core::landscape::{self, LandscapeConfig, LayerInputs};
 
+use crate::classes::ClassWeights;
 use crate::coverage::mask_in_place;
 use crate::error::TileError;
 use crate::mercator::pixel_size_m;
@@ -49,6 +50,7 @@ pub fn splat_names(landscape: &LandscapeConfig) -> Vec<&str> {
 pub fn material_tile(
     landscape: &LandscapeConfig,
     vegetation: &VegetationLevels,
+    classes: &ClassWeights,
     inputs: Inputs<'_>,
     z: u8,
     tx: i64,
@@ -61,6 +63,13 @@ pub fn material_tile(
         .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)?;
     let wet = wetness(&area);
     let veg = vegetation.tile(inputs, z, tx, ty)?;
+    // Only the classes a material names are sampled.
+    let class_weights: Vec<(String, Array2<f32>)> =
+        if landscape.materials.iter().any(|m| !m.class.is_empty()) {
+            classes.window(z, w)
+        } else {
+            Vec::new()
+        };
     let layer_inputs = LayerInputs {
         elevation: &terrain.elevation,
         slope: &terrain.slope,
@@ -68,6 +77,7 @@ pub fn material_tile(
         curvature: &terrain.curvature,
         wetness: &wet,
         vegetation: &veg,
+        classes: &class_weights,
         origin: (w.row0, w.col0),
         pixel_m: pixel_size_m(z),
     };

@@ -18,6 +18,8 @@ use std::sync::Arc;
 use ndarray::Array2;
 
 use terrasynth_core::landscape::{vegetation, LandscapeConfig};
+
+use crate::classes::ClassWeights;
 use terrasynth_core::raster::box2;
 use terrasynth_core::synth::{AnyAmplifier, Field, Level, SynthError, Window};
 
@@ -48,6 +50,8 @@ pub struct Inputs<'a> {
 #[derive(Debug)]
 pub struct VegetationLevels {
     landscape: Arc<LandscapeConfig>,
+    /// Land-cover class weights for the species' `class.<name>` terms.
+    classes: Arc<ClassWeights>,
     /// The amplifiers (one per zoom band) reconstructing the species layers from the same
     /// matches as elevation.
     amplifiers: Chain<AnyAmplifier>,
@@ -59,11 +63,13 @@ impl VegetationLevels {
     /// reconstruct only the species layers), cached in at most `cache_bytes` bytes.
     pub fn new(
         landscape: Arc<LandscapeConfig>,
+        classes: Arc<ClassWeights>,
         amplifiers: Chain<AnyAmplifier>,
         cache_bytes: u64,
     ) -> Self {
         VegetationLevels {
             landscape,
+            classes,
             amplifiers,
             cache: LevelCache::new(cache_bytes),
         }
@@ -145,16 +151,21 @@ impl VegetationLevels {
                 AnyAmplifier::Gradient(_) => true,
             })
             .collect();
+        let mut layers: Vec<(String, Array2<f32>)> = species
+            .iter()
+            .zip(&parent_veg)
+            .zip(&in_dict)
+            .filter(|(_, &d)| d)
+            .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
+            .collect();
+        // The class probabilities the elevation's matching reads: the same matches.
+        if let AnyAmplifier::Dictionary(_) = amp {
+            layers.extend(self.classes.indicator_window(z - 1, need));
+        }
         let parent = Field {
             window: need,
             elevation: parent_elev,
-            layers: species
-                .iter()
-                .zip(&parent_veg)
-                .zip(&in_dict)
-                .filter(|(_, &d)| d)
-                .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
-                .collect(),
+            layers,
         };
         let field = if in_dict.iter().any(|&d| d) {
             Some(amp.amplify(&parent, w, extent.level_cell_m(z - 1) as f32)?)
@@ -171,6 +182,11 @@ impl VegetationLevels {
         let viability = self.landscape.viability;
         let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
         let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
+        let class_weights = if species.iter().any(|s| !s.class.is_empty()) {
+            self.classes.window(z, w)
+        } else {
+            Vec::new()
+        };
         let mut out = Vec::with_capacity(species.len());
         for (k, sp) in species.iter().enumerate() {
             let mut d = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
@@ -185,13 +201,16 @@ impl VegetationLevels {
                     }
                 },
             };
-            let suit = vegetation::suitability_grid(
+            let mut suit = vegetation::suitability_grid(
                 sp,
                 &terrain.elevation,
                 &terrain.slope,
                 &terrain.northness,
                 &wet,
             );
+            if let Some(f) = vegetation::class_factor(sp, &class_weights) {
+                suit *= &f;
+            }
             vegetation::redistribute_in_blocks(&mut d, &suit, w.row0, w.col0);
             // Then the viability step fades density on marginal ground.
             ndarray::Zip::from(&mut d)

@@ -26,6 +26,7 @@ use terrasynth_core::synth::{
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
 use crate::chain::{Chain, DictionaryBand};
+use crate::classes::{ClassWeights, WorldClasses};
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
@@ -70,6 +71,9 @@ pub struct WorldParts {
     /// Sea level and lake settings ([`crate::water`]); a `sea_level_m` of `None` takes the
     /// default rule ([`default_sea_level`]: 0 m for a base with cells below 0, else no sea).
     pub water: WaterConfig,
+    /// Land-cover classes on the base's grid ([`crate::classes`]); `None`: no classes (a
+    /// material's `class.<name>` term then names an unknown class).
+    pub classes: Option<WorldClasses>,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -132,6 +136,8 @@ pub struct World {
     vegetation: VegetationLevels,
     water: WaterLevels,
     water_config: WaterConfig,
+    /// Land-cover class weights on the base's grid (empty without classes).
+    classes: Arc<ClassWeights>,
     /// The base's ridges and valleys, once computed (the lock coalesces concurrent first uses).
     features: Mutex<Option<Arc<Features>>>,
 }
@@ -204,7 +210,7 @@ fn band_amplifier(
 }
 
 /// Hex SHA-256 of everything that determines a world's tiles.
-fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
+fn fingerprint(parts: &WorldParts, z_base: u8, classes: &ClassWeights) -> String {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
@@ -233,6 +239,12 @@ fn fingerprint(parts: &WorldParts, z_base: u8) -> String {
         // Absent before water: worlds with the default settings keep their fingerprint.
         h.update(format!("water={:?}|", parts.water));
     }
+    if !classes.is_empty() {
+        // Absent before classes: worlds without classes keep their fingerprint.
+        h.update(b"classes=");
+        h.update(classes.fingerprint_bytes());
+        h.update(b"|");
+    }
     for v in parts.base.data.iter() {
         h.update(v.to_bits().to_le_bytes());
     }
@@ -244,6 +256,20 @@ impl World {
     /// A base in a projected CRS (UTM…) is first reprojected onto EPSG:4326
     /// ([`terrasynth_core::raster::reproject::to_geographic`]).
     pub fn new(mut parts: WorldParts) -> Result<World, TileError> {
+        // Classes lie on the base's grid as given: weighed before the base is reprojected.
+        let classes = match &parts.classes {
+            Some(c) => ClassWeights::of(
+                c,
+                &parts.base,
+                parts
+                    .weights
+                    .layers
+                    .iter()
+                    .any(|(n, w)| n == crate::classes::CLASS_GROUP && *w > 0.0),
+            )?,
+            None => ClassWeights::default(),
+        };
+        parts.landscape.check_classes(&classes.names())?;
         if matches!(parts.base.georef.crs, Crs::Projected(_)) {
             parts.base =
                 to_geographic(&parts.base).map_err(|e| TileError::Raster(e.to_string()))?;
@@ -267,7 +293,7 @@ impl World {
         let layer_amplifiers = Chain::new(&parts.dictionaries, |b| {
             band_amplifier(b, &parts.weights, levers, Some(&species))
         })?;
-        let fingerprint = fingerprint(&parts, extent.z_base);
+        let fingerprint = fingerprint(&parts, extent.z_base, &classes);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
         let wet = parts.water.may_have_water();
@@ -275,7 +301,8 @@ impl World {
             extent.world_window(extent.z_base),
             parts.landscape.species.len(),
             wet,
-        );
+        )
+        .saturating_add(classes.bytes());
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
@@ -289,6 +316,7 @@ impl World {
             .unwrap_or_else(|| extent.middle());
         let etag_seeds = etag_seeds(&fingerprint, &scatter_fingerprint(&parts.landscape));
         let landscape = Arc::new(parts.landscape);
+        let classes = Arc::new(classes);
         Ok(World {
             memory: MemoryPlan {
                 share: parts.cache_bytes,
@@ -314,16 +342,19 @@ impl World {
                 budget / 2,
                 budget / 64,
                 parts.water.clone(),
+                classes.clone(),
             ),
-            whole: WholeWorld::new(landscape.clone()),
+            whole: WholeWorld::new(landscape.clone(), classes.clone()),
             drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
             vegetation: VegetationLevels::new(
                 landscape.clone(),
+                classes.clone(),
                 layer_amplifiers,
                 budget / 4 - water_bytes / 2,
             ),
             water: WaterLevels::new(water_bytes),
             water_config: parts.water,
+            classes,
             landscape,
             features: Mutex::new(None),
         })
@@ -613,7 +644,15 @@ impl World {
         tx: i64,
         ty: i64,
     ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
-        materials::material_tile(&self.landscape, &self.vegetation, self.inputs(), z, tx, ty)
+        materials::material_tile(
+            &self.landscape,
+            &self.vegetation,
+            &self.classes,
+            self.inputs(),
+            z,
+            tx,
+            ty,
+        )
     }
 
     /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),
@@ -628,6 +667,7 @@ impl World {
         materials::material_tile(
             &self.landscape,
             &self.vegetation,
+            &self.classes,
             self.inputs(),
             z,
             i64::from(x),

@@ -26,7 +26,9 @@ use crate::server::state::{blocking, AppState};
 pub struct RasterFile(pub Vec<u8>);
 
 /// A multipart exemplar: an `elevation` part and any number of named layer parts (each a raster
-/// file on the elevation's grid).
+/// file on the elevation's grid): e.g. a `classes` part (a land-cover class raster of integers,
+/// for a world's `classes.legend`) or an `rgb` part (an 8-bit RGB or RGBA PNG of the same size,
+/// a satellite image for a world's `classes.hsv`, stored as packed `0xRRGGBB` values).
 #[derive(utoipa::ToSchema)]
 pub struct ExemplarForm {
     /// The elevation raster.
@@ -52,7 +54,7 @@ fn multipart_error(e: axum::extract::multipart::MultipartError) -> ServerError {
         ("north" = Option<f64>, Query, description = "North edge in CRS units (PNG and EXR)"),
         ("crs" = Option<String>, Query, description = "`EPSG:4326` (default) or `EPSG:3857`")
     ),
-    request_body(description = "A GeoTIFF, a 16-bit grayscale PNG or an OpenEXR file; or multipart/form-data with an `elevation` part and named layer parts on the same grid",
+    request_body(description = "A GeoTIFF, a 16-bit grayscale PNG or an OpenEXR file; or multipart/form-data with an `elevation` part and named layer parts on the same grid (a `classes` part: a land-cover class raster; an `rgb` part: an 8-bit RGB(A) PNG satellite image)",
         content(
             (RasterFile = "image/tiff"), (RasterFile = "image/png"), (RasterFile = "image/x-exr"),
             (RasterFile = "application/octet-stream"), (ExemplarForm = "multipart/form-data")

@@ -5,11 +5,21 @@
 //! Hue is in degrees `[0, 360)`, saturation and value in `[0, 1]` (the usual hexcone model). A
 //! hue range whose minimum exceeds its maximum wraps through 0° (reds: `[330, 20]`). A pixel
 //! takes the first class (in the definition's order) whose three ranges all hold it, else none.
+//!
+//! A world's classes ([`ClassesConfig`], `[classes]` in a world file, `"classes"` in the admin
+//! API) come either from a class raster (integers) with a `legend` `{value: name}`, or from an RGB
+//! image (a raster of packed `0xRRGGBB` values, see [`pack_rgb`]) with `hsv` ranges; either way
+//! they become a raster of class codes ([`ClassesConfig::codes`]: 1 + the index of the class in
+//! [`ClassesConfig::names`], 0 for none) and one smoothed weight grid per class.
+
+use std::collections::BTreeMap;
 
 use ndarray::Array2;
 use serde::{Deserialize, Serialize};
 
 use super::LandscapeError;
+use crate::dictionary::LayerKind;
+pub use crate::raster::png16::{pack_rgb, unpack_rgb};
 
 /// The HSV ranges of one class, each `[min, max]` inclusive.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -102,6 +112,224 @@ fn hue_holds(r: [f32; 2], h: f32) -> bool {
     } else {
         h >= r[0] || h <= r[1]
     }
+}
+
+/// Most classes a world may define.
+pub const MAX_CLASSES: usize = 64;
+/// Largest smoothing radius, cells of the class raster.
+pub const MAX_SMOOTHING_CELLS: usize = 64;
+
+/// Where a world's land-cover classes come from and how their weights are smoothed (the raster
+/// itself is given next to it: a file in a world file, an exemplar layer in the admin API).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClassesConfig {
+    /// A class raster's legend: raster value (an integer 0–65535, written as a string key) →
+    /// class name. Several values may name one class. Exclusive with `hsv`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub legend: BTreeMap<String, String>,
+    /// An RGB image's classes by HSV ranges, first match wins. Exclusive with `legend`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hsv: Vec<HsvClass>,
+    /// Distance, metres, over which a class weight falls from 1 to 0 across a class border: the
+    /// weight is box-averaged over `2·r + 1` cells with `r = round(smoothing_m / (2·cell))`
+    /// (0: the sharp indicator, still interpolated bilinearly between cells on tiles).
+    #[serde(default)]
+    pub smoothing_m: f32,
+}
+
+impl ClassesConfig {
+    /// Whether the classes come from an RGB image (`hsv`) rather than a class raster (`legend`).
+    pub fn is_rgb(&self) -> bool {
+        !self.hsv.is_empty()
+    }
+
+    /// The class names in code order (code `k + 1` is `names()[k]`): the `hsv` classes in their
+    /// order, or the legend's names in the order of their first value.
+    pub fn names(&self) -> Vec<String> {
+        if self.is_rgb() {
+            return self.hsv.iter().map(|c| c.name.clone()).collect();
+        }
+        let mut out: Vec<String> = Vec::new();
+        for (_, n) in self.legend_values().unwrap_or_default() {
+            if !out.contains(&n) {
+                out.push(n);
+            }
+        }
+        out
+    }
+
+    /// The legend as `(value, name)` pairs, in value order; the error names a bad key.
+    fn legend_values(&self) -> Result<Vec<(u16, String)>, LandscapeError> {
+        let mut v = Vec::with_capacity(self.legend.len());
+        for (k, n) in &self.legend {
+            let value = k.trim().parse::<u16>().map_err(|_| {
+                LandscapeError::Invalid(format!(
+                    "classes.legend: key `{k}` must be an integer raster value 0–65535"
+                ))
+            })?;
+            v.push((value, n.clone()));
+        }
+        v.sort_by_key(|p| p.0);
+        Ok(v)
+    }
+
+    /// Checks the settings: exactly one of `legend` and `hsv`, valid names and ranges, at most
+    /// [`MAX_CLASSES`] classes, a finite non-negative `smoothing_m`.
+    pub fn validate(&self) -> Result<(), LandscapeError> {
+        let bad = |m: String| Err(LandscapeError::Invalid(m));
+        match (self.legend.is_empty(), self.hsv.is_empty()) {
+            (true, true) => {
+                return bad(
+                    "classes: give a `legend` (class raster) or `hsv` ranges (RGB image)".into(),
+                )
+            }
+            (false, false) => {
+                return bad("classes: give either a `legend` or `hsv` ranges, not both".into())
+            }
+            _ => {}
+        }
+        if self.is_rgb() {
+            validate_classes(&self.hsv)?;
+        } else {
+            for (value, name) in self.legend_values()? {
+                if !crate::names::is_valid_name(&name) {
+                    return bad(format!(
+                        "classes.legend: name `{name}` of value {value} must be {}",
+                        crate::names::NAME_RULE
+                    ));
+                }
+            }
+        }
+        let n = self.names().len();
+        if n > MAX_CLASSES {
+            return bad(format!("classes: {n} classes (at most {MAX_CLASSES})"));
+        }
+        if !(self.smoothing_m.is_finite() && self.smoothing_m >= 0.0) {
+            return bad("classes.smoothing_m must be a finite distance ≥ 0".into());
+        }
+        Ok(())
+    }
+
+    /// The smoothing radius in cells of `cell_m` metres; the error names `smoothing_m` when it
+    /// exceeds [`MAX_SMOOTHING_CELLS`] cells.
+    pub fn radius_cells(&self, cell_m: f64) -> Result<usize, LandscapeError> {
+        if self.smoothing_m <= 0.0 {
+            return Ok(0);
+        }
+        let r = (f64::from(self.smoothing_m) / (2.0 * cell_m)).round();
+        if !(r.is_finite() && r <= MAX_SMOOTHING_CELLS as f64) {
+            return Err(LandscapeError::Invalid(format!(
+                "classes.smoothing_m {} m is more than {MAX_SMOOTHING_CELLS} cells of {cell_m:.1} m \
+                 each way",
+                self.smoothing_m
+            )));
+        }
+        Ok(r as usize)
+    }
+
+    /// The class codes of `raster` (a class raster with a legend, or packed RGB with `hsv`):
+    /// 1 + the class's index in [`ClassesConfig::names`], 0 for none (NaN cells, or colours no
+    /// range holds). A class raster's value must be an integer in the legend: the error names
+    /// the first value (in raster order) that is not.
+    pub fn codes(&self, raster: &Array2<f32>) -> Result<Array2<u16>, LandscapeError> {
+        if self.is_rgb() {
+            let mut rgb = Array2::from_elem(raster.dim(), [0u8; 3]);
+            let mut valid = Array2::from_elem(raster.dim(), false);
+            for ((p, v), &x) in rgb.iter_mut().zip(valid.iter_mut()).zip(raster) {
+                if let Some(c) = unpack_rgb(x) {
+                    *p = c;
+                    *v = true;
+                } else if !x.is_nan() {
+                    return Err(LandscapeError::Invalid(format!(
+                        "classes: the RGB raster holds {x}, not a packed 0xRRGGBB colour"
+                    )));
+                }
+            }
+            let mut codes = classify_rgb(&self.hsv, &rgb);
+            ndarray::Zip::from(&mut codes)
+                .and(&valid)
+                .for_each(|c, &v| {
+                    if !v {
+                        *c = 0;
+                    }
+                });
+            return Ok(codes);
+        }
+        let names = self.names();
+        let table: Vec<(u16, u16)> = self
+            .legend_values()?
+            .into_iter()
+            .map(|(value, n)| {
+                let code = names.iter().position(|x| *x == n).map_or(0, |k| k + 1);
+                (value, code as u16)
+            })
+            .collect();
+        let mut out = Array2::zeros(raster.dim());
+        for (o, &x) in out.iter_mut().zip(raster) {
+            if x.is_nan() {
+                continue;
+            }
+            let code = (x.fract() == 0.0 && (0.0..=65535.0).contains(&x))
+                .then(|| table.iter().find(|p| f32::from(p.0) == x).map(|p| p.1))
+                .flatten();
+            match code {
+                Some(c) => *o = c,
+                None => {
+                    return Err(LandscapeError::Invalid(format!(
+                        "classes.legend has no entry for raster value {x}"
+                    )))
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// The distinct values of a class raster (NaN cells skipped), ascending; the error names a value
+/// that is no integer 0–65535, or more than [`MAX_CLASSES`] values.
+pub fn class_values(raster: &Array2<f32>) -> Result<Vec<u16>, LandscapeError> {
+    let mut values = std::collections::BTreeSet::new();
+    for &x in raster {
+        if x.is_nan() {
+            continue;
+        }
+        if !(x.fract() == 0.0 && (0.0..=65535.0).contains(&x)) {
+            return Err(LandscapeError::Invalid(format!(
+                "class raster value {x} is no integer 0–65535"
+            )));
+        }
+        values.insert(x as u16);
+        if values.len() > MAX_CLASSES {
+            return Err(LandscapeError::Invalid(format!(
+                "the class raster holds more than {MAX_CLASSES} values"
+            )));
+        }
+    }
+    Ok(values.into_iter().collect())
+}
+
+/// The class layers of a dictionary build (multi-layer synthesis, class layers): one layer
+/// `{group}_{v}` per value `v` of `values`, 1 where `raster` holds `v` and 0 elsewhere, of kind
+/// [`LayerKind::Class`] in group `group` (matching weighs the group by its name).
+pub fn class_layers(
+    group: &str,
+    raster: &Array2<f32>,
+    values: &[u16],
+) -> Vec<(String, Array2<f32>, LayerKind)> {
+    values
+        .iter()
+        .map(|&v| {
+            let x = f32::from(v);
+            (
+                format!("{group}_{v}"),
+                raster.mapv(|r| if r == x { 1.0 } else { 0.0 }),
+                LayerKind::Class {
+                    group: group.to_string(),
+                },
+            )
+        })
+        .collect()
 }
 
 /// The class of one colour: the index of the first class whose ranges hold it.
@@ -238,6 +466,77 @@ mod tests {
         let mut c = classes();
         c[3].name = "class.x".into();
         assert!(validate_classes(&c).is_err());
+    }
+
+    #[test]
+    fn a_legend_maps_raster_values_to_codes_and_names_missing_values() {
+        let cfg = ClassesConfig {
+            legend: [("10", "forest"), ("20", "rock"), ("30", "forest")]
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect(),
+            ..ClassesConfig::default()
+        };
+        cfg.validate().unwrap();
+        assert_eq!(cfg.names(), vec!["forest".to_string(), "rock".to_string()]);
+        let raster = ndarray::arr2(&[[10.0f32, 20.0], [30.0, f32::NAN]]);
+        // 10 and 30 are forest (code 1), 20 rock (code 2), NaN no class.
+        assert_eq!(
+            cfg.codes(&raster).unwrap(),
+            ndarray::arr2(&[[1u16, 2], [1, 0]])
+        );
+        let e = cfg
+            .codes(&ndarray::arr2(&[[10.0f32, 25.0]]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no entry for raster value 25"), "{e}");
+        let e = cfg
+            .codes(&ndarray::arr2(&[[10.5f32]]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("10.5"), "{e}");
+        let mut bad = cfg.clone();
+        bad.legend.insert("x".into(), "a".into());
+        assert!(bad.validate().unwrap_err().to_string().contains("`x`"));
+        let mut both = cfg.clone();
+        both.hsv = classes();
+        assert!(both
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("not both"));
+        assert!(ClassesConfig::default().validate().is_err());
+        let mut far = cfg;
+        far.smoothing_m = 1000.0;
+        // r = round(1000 / (2·10)) = 50 cells; 1000 m over 5 m cells is 100 > 64.
+        assert_eq!(far.radius_cells(10.0).unwrap(), 50);
+        assert!(far
+            .radius_cells(5.0)
+            .unwrap_err()
+            .to_string()
+            .contains("smoothing_m"));
+    }
+
+    #[test]
+    fn packed_rgb_rasters_are_classified_by_hsv() {
+        assert_eq!(pack_rgb([1, 2, 3]), 65536.0 + 512.0 + 3.0);
+        assert_eq!(unpack_rgb(pack_rgb([255, 254, 253])), Some([255, 254, 253]));
+        assert_eq!(unpack_rgb(-1.0), None);
+        let cfg = ClassesConfig {
+            hsv: classes(),
+            ..ClassesConfig::default()
+        };
+        cfg.validate().unwrap();
+        // (0, 51, 102) water, (30, 100, 40) forest, NaN none, (120, 120, 120) none.
+        let raster = ndarray::arr2(&[
+            [pack_rgb([0, 51, 102]), pack_rgb([30, 100, 40])],
+            [f32::NAN, pack_rgb([120, 120, 120])],
+        ]);
+        assert_eq!(
+            cfg.codes(&raster).unwrap(),
+            ndarray::arr2(&[[1u16, 2], [0, 0]])
+        );
+        assert!(cfg.codes(&ndarray::arr2(&[[0.5f32]])).is_err());
     }
 
     #[test]

@@ -15,11 +15,13 @@ pub mod splat;
 pub mod vegetation;
 pub mod water;
 
-pub use classes::{classify_rgb, validate_classes, HsvClass, HsvRanges};
+pub use classes::{classify_rgb, validate_classes, ClassesConfig, HsvClass, HsvRanges};
 pub use model::{Clustering, DrainageStyle, LandscapeConfig, Material, Species, Trapezoid};
 pub use scatter::{Instance, Method, RuleField, ScatterRule, SizeRange};
 pub use splat::{colour_of, material_weights, quantise_weights, LayerInputs};
-pub use vegetation::{cluster_densities, exemplar_vegetation, suitability, viability_gate};
+pub use vegetation::{
+    class_factor, cluster_densities, exemplar_vegetation, suitability, viability_gate,
+};
 pub use water::{water, Water, WaterConfig};
 
 use thiserror::Error;

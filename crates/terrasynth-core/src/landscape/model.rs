@@ -67,7 +67,7 @@ impl Trapezoid {
 
 /// One vegetation species (or cover type) and its niche: the product of the weight curves of
 /// the parameters it names (an absent parameter does not constrain).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Species {
     /// Layer name (letters, digits, `_`, `-`); also the EXR channel name.
@@ -87,6 +87,49 @@ pub struct Species {
     /// Wetness, log10 of the upstream area in m².
     #[serde(default)]
     pub wetness: Option<Trapezoid>,
+    /// Land-cover class weights by class name (`class.<name>`), as for materials; they apply
+    /// where a world gives class weights (dictionary builds, which have none, ignore them).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub class: BTreeMap<String, Trapezoid>,
+}
+
+// `Debug` by hand: as derived, with `class` only when it is not empty, so the text of a species
+// or material without class terms is what it was before classes — world fingerprints (ETags) and
+// configured worlds' dictionary aliases hash it.
+impl std::fmt::Debug for Species {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("Species");
+        d.field("name", &self.name)
+            .field("colour", &self.colour)
+            .field("elevation", &self.elevation)
+            .field("slope", &self.slope)
+            .field("northness", &self.northness)
+            .field("wetness", &self.wetness);
+        if !self.class.is_empty() {
+            d.field("class", &self.class);
+        }
+        d.finish()
+    }
+}
+
+impl std::fmt::Debug for Material {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("Material");
+        d.field("name", &self.name)
+            .field("colour", &self.colour)
+            .field("elevation", &self.elevation)
+            .field("slope", &self.slope)
+            .field("northness", &self.northness)
+            .field("curvature", &self.curvature)
+            .field("wetness", &self.wetness)
+            .field("vegetation", &self.vegetation);
+        if !self.class.is_empty() {
+            d.field("class", &self.class);
+        }
+        d.field("spread", &self.spread)
+            .field("spread_scale_m", &self.spread_scale_m)
+            .finish()
+    }
 }
 
 fn default_species_colour() -> [u8; 3] {
@@ -125,7 +168,7 @@ impl Default for Clustering {
 /// the parameters it names, times `1 + spread · n` with `n` a deterministic value noise in
 /// [−1, 1] of wavelength `spread_scale_m` (so a weight is 0 wherever any of its ranges excludes
 /// the pixel).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
     /// Name.
@@ -150,6 +193,10 @@ pub struct Material {
     /// Vegetation densities by species name.
     #[serde(default)]
     pub vegetation: BTreeMap<String, Trapezoid>,
+    /// Land-cover class weights by class name (`class.<name>`: 1 inside the class, 0 outside,
+    /// smoothed over the world's `classes.smoothing_m`); the world must define those classes.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub class: BTreeMap<String, Trapezoid>,
     /// Amplitude of the noise modulation, 0..1 (0: none).
     #[serde(default)]
     pub spread: f32,
@@ -224,6 +271,7 @@ impl Default for LandscapeConfig {
                 curvature: None,
                 wetness: None,
                 vegetation: BTreeMap::new(),
+                class: BTreeMap::new(),
                 spread: 0.0,
                 spread_scale_m: default_spread_scale(),
             }],
@@ -290,6 +338,9 @@ impl LandscapeConfig {
                     t.check(&format!("species {} {k}", s.name))?;
                 }
             }
+            for (class, t) in &s.class {
+                t.check(&format!("species {} class.{class}", s.name))?;
+            }
         }
         for (i, m) in self.materials.iter().enumerate() {
             if !crate::names::is_valid_name(&m.name)
@@ -314,6 +365,9 @@ impl LandscapeConfig {
                 }
                 t.check(&format!("material {} vegetation {sp}", m.name))?;
             }
+            for (class, t) in &m.class {
+                t.check(&format!("material {} class.{class}", m.name))?;
+            }
             if !(m.spread.is_finite() && (0.0..=1.0).contains(&m.spread)) {
                 return bad(format!("material {}: spread must lie in [0, 1]", m.name));
             }
@@ -336,6 +390,29 @@ impl LandscapeConfig {
         let d = &self.drainage;
         if !(d.png_min_m2 > 0.0 && d.png_max_m2 > d.png_min_m2 && d.png_max_m2.is_finite()) {
             return bad("drainage: need 0 < png_min_m2 < png_max_m2".into());
+        }
+        Ok(())
+    }
+
+    /// Checks that every `class.<name>` term of the materials and species names one of the world's classes
+    /// `names`; the error names the material and the class.
+    pub fn check_classes(&self, names: &[String]) -> Result<(), LandscapeError> {
+        let terms = self
+            .materials
+            .iter()
+            .map(|m| ("material", &m.name, &m.class))
+            .chain(self.species.iter().map(|s| ("species", &s.name, &s.class)));
+        for (what, name, class) in terms {
+            if let Some(c) = class.keys().find(|c| !names.contains(c)) {
+                let known = if names.is_empty() {
+                    "the world has no classes".to_string()
+                } else {
+                    format!("its classes are {}", names.join(", "))
+                };
+                return Err(LandscapeError::Invalid(format!(
+                    "{what} {name} names unknown class `{c}` ({known})"
+                )));
+            }
         }
         Ok(())
     }
@@ -387,6 +464,41 @@ mod tests {
         };
         assert_eq!(b.weight(1.0), 1.0);
         assert_eq!(b.weight(0.99), 0.0);
+    }
+
+    #[test]
+    fn debug_text_without_class_terms_is_the_text_before_classes() {
+        // The derived text of the fields before classes, written out by hand.
+        let t = Trapezoid {
+            min: 1.0,
+            max: 2.0,
+            falloff: 0.0,
+        };
+        let mut s = Species {
+            name: "a".into(),
+            colour: [1, 2, 3],
+            elevation: Some(t),
+            slope: None,
+            northness: None,
+            wetness: None,
+            class: BTreeMap::new(),
+        };
+        assert_eq!(
+            format!("{s:?}"),
+            "Species { name: \"a\", colour: [1, 2, 3], elevation: Some(Trapezoid { min: 1.0, \
+             max: 2.0, falloff: 0.0 }), slope: None, northness: None, wetness: None }"
+        );
+        s.class.insert("forest".into(), t);
+        assert!(format!("{s:?}").contains("class: {\"forest\""));
+        let mut m = LandscapeConfig::default().materials.remove(0);
+        assert_eq!(
+            format!("{m:?}"),
+            "Material { name: \"ground\", colour: [150, 140, 120], elevation: None, slope: None, \
+             northness: None, curvature: None, wetness: None, vegetation: {}, spread: 0.0, \
+             spread_scale_m: 2000.0 }"
+        );
+        m.class.insert("forest".into(), t);
+        assert!(format!("{m:?}").contains("vegetation: {}, class: {\"forest\""));
     }
 
     #[test]

@@ -24,6 +24,9 @@ pub struct LayerInputs<'a> {
     pub wetness: &'a Array2<f32>,
     /// Vegetation densities in species order.
     pub vegetation: &'a [Array2<f32>],
+    /// Land-cover class weights by class name (`class.<name>` terms; empty for a world without
+    /// classes).
+    pub classes: &'a [(String, Array2<f32>)],
     /// Global pixel coordinates `(row, col)` of element `(0, 0)`.
     pub origin: (i64, i64),
     /// Web Mercator metres per pixel (places the noise geographically).
@@ -56,6 +59,7 @@ fn raw_weight(
     c: f32,
     w: f32,
     veg: &dyn Fn(usize) -> f32,
+    class: &dyn Fn(&str) -> f32,
 ) -> f32 {
     let mut out = 1.0f32;
     for (t, x) in [
@@ -77,6 +81,9 @@ fn raw_weight(
             .map_or(0.0, veg);
         out *= t.weight(d);
     }
+    for (name, t) in &m.class {
+        out *= t.weight(class(name));
+    }
     out
 }
 
@@ -92,6 +99,12 @@ pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Arr
         for c in 0..cols {
             let x = (inp.origin.1 + c as i64) as f64 + 0.5;
             let veg = |k: usize| inp.vegetation.get(k).map_or(0.0, |a| a[[r, c]]);
+            let class = |name: &str| {
+                inp.classes
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .map_or(0.0, |(_, a)| a[[r, c]])
+            };
             let mut total = 0.0f32;
             for (k, m) in cfg.materials.iter().enumerate() {
                 let mut v = raw_weight(
@@ -103,6 +116,7 @@ pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Arr
                     inp.curvature[[r, c]],
                     inp.wetness[[r, c]],
                     &veg,
+                    &class,
                 );
                 if v > 0.0 && m.spread > 0.0 {
                     let seed = mix64(0x5b1a7 ^ k as u64);
@@ -197,6 +211,69 @@ mod tests {
                 }
                 assert!((f32::from(*b) - a * 255.0).abs() <= 1.0);
             }
+        }
+    }
+
+    #[test]
+    fn class_terms_make_weights_follow_the_classes() {
+        // Two materials: `meadow` admits class weights of `grass` in [0.5, 1] (a box), `scree`
+        // those of `rock` in [0, 1] with falloff 0.5 (smoothstep up to weight 0.5).
+        let toml = r#"
+            [[materials]]
+            name = "meadow"
+            colour = [0, 200, 0]
+            class.grass = { min = 0.5, max = 1.0 }
+            [[materials]]
+            name = "scree"
+            colour = [120, 120, 120]
+            class.rock = { min = 0.0, max = 2.0, falloff = 1.0 }
+        "#;
+        let cfg: LandscapeConfig = toml::from_str(toml).unwrap();
+        cfg.validate().unwrap();
+        cfg.check_classes(&["grass".into(), "rock".into()]).unwrap();
+        let e = cfg
+            .check_classes(&["grass".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("scree") && e.contains("`rock`"), "{e}");
+        let z = Array2::zeros((1, 4));
+        // Pixels: grass 1 / rock 0; grass 0.6 / rock 0.4; grass 0.2 / rock 0.8; neither.
+        let grass = ndarray::arr2(&[[1.0f32, 0.6, 0.2, 0.0]]);
+        let rock = ndarray::arr2(&[[0.0f32, 0.4, 0.8, 0.0]]);
+        let classes = vec![("grass".to_string(), grass), ("rock".to_string(), rock)];
+        let inp = LayerInputs {
+            elevation: &z,
+            slope: &z,
+            northness: &z,
+            curvature: &z,
+            wetness: &z,
+            vegetation: &[],
+            classes: &classes,
+            origin: (0, 0),
+            pixel_m: 1.0,
+        };
+        let w = material_weights(&cfg, &inp);
+        // By hand. Pixel 0: meadow 1 (1 in [0.5, 1]), scree 0 (rock 0 is the range's end) →
+        // (1, 0). Pixel 1: meadow 1, scree t = 0.4 → 0.4²(3 − 0.8) = 0.352 → normalised
+        // (1/1.352, 0.352/1.352). Pixel 2: meadow 0 (0.2 < 0.5), scree t = 0.8 → 0.896 → (0, 1).
+        // Pixel 3: neither admits it → the fallback (the first material).
+        let want = [
+            (1.0, 0.0),
+            (1.0 / 1.352, 0.352 / 1.352),
+            (0.0, 1.0),
+            (1.0, 0.0),
+        ];
+        for (c, (a, b)) in want.iter().enumerate() {
+            assert!(
+                (w[0][[0, c]] - a).abs() < 1e-5,
+                "meadow {c}: {}",
+                w[0][[0, c]]
+            );
+            assert!(
+                (w[1][[0, c]] - b).abs() < 1e-5,
+                "scree {c}: {}",
+                w[1][[0, c]]
+            );
         }
     }
 

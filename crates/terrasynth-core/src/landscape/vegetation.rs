@@ -31,6 +31,26 @@ pub fn suitability(sp: &Species, elevation: f32, slope: f32, northness: f32, wet
     w
 }
 
+/// The `class.<name>` factor of `sp` per pixel: the product of its class terms' weight curves
+/// over the class weights `classes` (by name; a class absent from them weighs 0). `None` when
+/// `sp` has no class terms or no class weights are given (dictionary builds: no classes).
+pub fn class_factor(sp: &Species, classes: &[(String, Array2<f32>)]) -> Option<Array2<f32>> {
+    let first = classes.first()?;
+    if sp.class.is_empty() {
+        return None;
+    }
+    let mut out = Array2::from_elem(first.1.dim(), 1.0f32);
+    for (name, t) in &sp.class {
+        match classes.iter().find(|(n, _)| n == name) {
+            Some((_, w)) => ndarray::Zip::from(&mut out)
+                .and(w)
+                .for_each(|o, &x| *o *= t.weight(x)),
+            None => out.fill(0.0),
+        }
+    }
+    Some(out)
+}
+
 /// The viability step on served terrain: a factor in [0, 1] that is 0 where the suitability is 0
 /// and 1 at and above `viability` (smoothstep in between).
 pub fn viability_gate(suit: f32, viability: f32) -> f32 {
@@ -185,12 +205,16 @@ pub fn suitability_grid(
 
 /// Patchy densities of every species on a grid whose cell `(0, 0)` is global `(row0, col0)`:
 /// [`suitability_grid`] then [`cluster_densities`], one species at a time.
+///
+/// `classes`: the land-cover class weights of the grid by name (empty: none), for the species'
+/// `class.<name>` terms ([`class_factor`]), applied to the suitability before the seeding.
 pub fn densities(
     cfg: &LandscapeConfig,
     elevation: &Array2<f32>,
     cells: &CellSizes,
     wetness: &Array2<f32>,
     origin: (i64, i64),
+    classes: &[(String, Array2<f32>)],
 ) -> Vec<Array2<f32>> {
     let slope = analysis::slope_degrees(elevation, cells);
     let north = analysis::northness(elevation, cells);
@@ -199,7 +223,10 @@ pub fn densities(
         .iter()
         .enumerate()
         .map(|(k, sp)| {
-            let suit = suitability_grid(sp, elevation, &slope, &north, wetness);
+            let mut suit = suitability_grid(sp, elevation, &slope, &north, wetness);
+            if let Some(f) = class_factor(sp, classes) {
+                suit *= &f;
+            }
             cluster_densities(&suit, origin.0, origin.1, &cfg.clustering, k as u64)
         })
         .collect()
@@ -217,7 +244,7 @@ pub fn exemplar_vegetation(
     let filled = analysis::priority_flood_fill(elevation);
     let area = analysis::flow_accumulation_d8(&filled, cells);
     let wet = analysis::log_upstream_area(&area);
-    densities(cfg, elevation, cells, &wet, (0, 0))
+    densities(cfg, elevation, cells, &wet, (0, 0), &[])
         .into_iter()
         .zip(&cfg.species)
         .map(|(d, sp)| (sp.name.clone(), d, LayerKind::Continuous))
@@ -245,7 +272,42 @@ mod tests {
                 falloff: 0.0,
             }),
             wetness: None,
+            class: Default::default(),
         }
+    }
+
+    #[test]
+    fn class_terms_multiply_the_suitability_by_the_class_weights() {
+        let mut sp = species();
+        // No class weights given (a dictionary build): no factor, whatever the terms.
+        assert!(class_factor(&sp, &[]).is_none());
+        let grass = ndarray::arr2(&[[1.0f32, 0.75, 0.25, 0.0]]);
+        let classes = vec![("grass".to_string(), grass)];
+        assert!(class_factor(&sp, &classes).is_none(), "no terms, no factor");
+        sp.class.insert(
+            "grass".into(),
+            Trapezoid {
+                min: 0.5,
+                max: 1.0,
+                falloff: 0.0,
+            },
+        );
+        // A box on [0.5, 1]: 1, 1, 0, 0 by hand.
+        let f = class_factor(&sp, &classes).unwrap();
+        assert_eq!(f, ndarray::arr2(&[[1.0f32, 1.0, 0.0, 0.0]]));
+        // A class the weights lack weighs 0.
+        sp.class.insert(
+            "rock".into(),
+            Trapezoid {
+                min: 0.0,
+                max: 1.0,
+                falloff: 0.0,
+            },
+        );
+        assert!(class_factor(&sp, &classes)
+            .unwrap()
+            .iter()
+            .all(|&v| v == 0.0));
     }
 
     #[test]

@@ -24,4 +24,4 @@ pub use grid::{Grid, LayeredRaster, ELEVATION};
 pub use io::{read_raster_file, sniff, write_raster_file, RasterFormat};
 pub use limits::ReadLimits;
 pub use openexr::{read_exr, write_exr};
-pub use png16::{read_png16, write_png16};
+pub use png16::{read_png16, read_png_rgb, write_png16};

@@ -1,5 +1,7 @@
 //! 16-bit grayscale PNG elevation rasters: each pixel holds the elevation in whole metres as an
-//! unsigned 16-bit integer. PNG carries no georeference, so the caller supplies one.
+//! unsigned 16-bit integer. PNG carries no georeference, so the caller supplies one. Also 8-bit
+//! RGB(A) images (satellite images classified into land-cover classes), read as packed
+//! `0xRRGGBB` values ([`read_png_rgb`]).
 
 // Sizes and offsets come from the file: every sum and product on them is checked.
 #![warn(clippy::arithmetic_side_effects)]
@@ -88,6 +90,89 @@ pub fn read_png16(bytes: &[u8], georef: Georef, limits: &ReadLimits) -> Result<G
     Ok(Grid::new(data, georef))
 }
 
+/// An 8-bit RGB colour packed into one exactly representable `f32`: `r·65536 + g·256 + b`
+/// (the `rgb` layer of an exemplar; read by
+/// [`crate::landscape::classes`]).
+pub fn pack_rgb(rgb: [u8; 3]) -> f32 {
+    (u32::from(rgb[0]) << 16 | u32::from(rgb[1]) << 8 | u32::from(rgb[2])) as f32
+}
+
+/// The colour of a packed value ([`pack_rgb`]); `None` for values that are no packed colour.
+pub fn unpack_rgb(x: f32) -> Option<[u8; 3]> {
+    if !(x.is_finite() && x.fract() == 0.0 && (0.0..=16_777_215.0).contains(&x)) {
+        return None;
+    }
+    let v = x as u32;
+    Some([(v >> 16) as u8, (v >> 8) as u8, v as u8])
+}
+
+/// Reads an 8-bit RGB or RGBA PNG placed with `georef` as one grid of packed colours
+/// `r·65536 + g·256 + b` ([`pack_rgb`]); fully transparent pixels
+/// (alpha 0) are invalid.
+///
+/// # Errors
+/// As [`read_png16`]; [`RasterError::Unsupported`] for anything but 8-bit RGB or RGBA.
+pub fn read_png_rgb(
+    bytes: &[u8],
+    georef: Georef,
+    limits: &ReadLimits,
+) -> Result<Grid, RasterError> {
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Err(RasterError::UnknownFormat("no PNG signature".to_string()));
+    }
+    let png_limits = png::Limits {
+        bytes: limits.byte_budget(4).saturating_add(1 << 20),
+    };
+    let mut decoder = png::Decoder::new_with_limits(Cursor::new(bytes), png_limits);
+    let (width, height, channels) = {
+        let info = decoder.read_header_info().map_err(map_png_error)?;
+        limits.check_dimensions(u64::from(info.width), u64::from(info.height))?;
+        let channels = match (info.color_type, info.bit_depth) {
+            (png::ColorType::Rgb, png::BitDepth::Eight) => 3usize,
+            (png::ColorType::Rgba, png::BitDepth::Eight) => 4,
+            (t, d) => {
+                return Err(unsupported(format!(
+                    "{t:?} at {} bits per sample (an RGB image must be 8-bit RGB or RGBA)",
+                    d as u8
+                )))
+            }
+        };
+        (info.width as usize, info.height as usize, channels)
+    };
+    if !georef.is_sane(width, height) {
+        return Err(RasterError::BadGeoreference(format!(
+            "{georef:?} is not a sane georeference for a {width}×{height} grid"
+        )));
+    }
+    let mut reader = decoder.read_info().map_err(map_png_error)?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| malformed("image size overflows"))?;
+    let expected = width.saturating_mul(height).saturating_mul(channels);
+    if size != expected {
+        return Err(malformed(format!(
+            "output buffer of {size} bytes for a {width}×{height} image of {channels} channels"
+        )));
+    }
+    let mut buf = vec![0u8; size];
+    reader.next_frame(&mut buf).map_err(map_png_error)?;
+    let mut values = Vec::with_capacity(width.saturating_mul(height));
+    let mut valid = Vec::with_capacity(width.saturating_mul(height));
+    for p in buf.chunks_exact(channels) {
+        values.push(pack_rgb([p[0], p[1], p[2]]));
+        valid.push(channels == 3 || p[3] > 0);
+    }
+    let data =
+        Array2::from_shape_vec((height, width), values).map_err(|e| malformed(e.to_string()))?;
+    let mut grid = Grid::new(data, georef);
+    if valid.iter().any(|v| !v) {
+        grid.valid = Some(
+            Array2::from_shape_vec((height, width), valid).map_err(|e| malformed(e.to_string()))?,
+        );
+    }
+    Ok(grid)
+}
+
 /// Encodes `grid` as a 16-bit grayscale PNG: values are rounded to whole metres and clamped to
 /// `0..=65535`; invalid cells are written as 0. The georeference is not stored.
 ///
@@ -125,4 +210,71 @@ pub fn write_png16(grid: &Grid) -> Result<Vec<u8>, RasterError> {
         writer.finish().map_err(enc_err)?;
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn png(color: png::ColorType, depth: png::BitDepth, w: u32, h: u32, data: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut out, w, h);
+            enc.set_color(color);
+            enc.set_depth(depth);
+            let mut wr = enc.write_header().unwrap();
+            wr.write_image_data(data).unwrap();
+        }
+        out
+    }
+
+    #[test]
+    fn rgb_and_rgba_pngs_read_as_packed_colours_with_transparent_pixels_invalid() {
+        let g = Georef::local_metric(10.0);
+        let l = ReadLimits::default();
+        // 2 × 1 RGB: (1, 2, 3) = 65536 + 512 + 3 = 66051; (255, 0, 0) = 16711680.
+        let grid = read_png_rgb(
+            &png(
+                png::ColorType::Rgb,
+                png::BitDepth::Eight,
+                2,
+                1,
+                &[1, 2, 3, 255, 0, 0],
+            ),
+            g,
+            &l,
+        )
+        .unwrap();
+        assert_eq!(grid.data, ndarray::arr2(&[[66051.0f32, 16711680.0]]));
+        assert!(grid.valid.is_none());
+        // RGBA: the second pixel is transparent.
+        let grid = read_png_rgb(
+            &png(
+                png::ColorType::Rgba,
+                png::BitDepth::Eight,
+                2,
+                1,
+                &[0, 0, 1, 255, 9, 9, 9, 0],
+            ),
+            g,
+            &l,
+        )
+        .unwrap();
+        assert_eq!(grid.data[[0, 0]], 1.0);
+        assert_eq!(grid.valid, Some(ndarray::arr2(&[[true, false]])));
+        // 16-bit grey is no RGB image.
+        let e = read_png_rgb(
+            &png(
+                png::ColorType::Grayscale,
+                png::BitDepth::Sixteen,
+                1,
+                1,
+                &[0, 7],
+            ),
+            g,
+            &l,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("8-bit RGB or RGBA"), "{e}");
+    }
 }

@@ -523,3 +523,146 @@ fn learning_beats_a_random_subset() {
         assert_eq!(all.hi_atom(j), learned.hi_atom(i));
     }
 }
+
+// ---- Class layers (#15): matching with the class term picks class-consistent atoms ----
+
+/// Hashed value noise, metres: the same statistics everywhere, so elevation alone says nothing
+/// of the class a patch lies in.
+fn noise_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
+    let h = |x: i64, y: i64| {
+        (terrasynth_core::dictionary::hash2(seed, x, y) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let mut z = 1000.0;
+        for (scale, amp) in [(16.0, 120.0), (7.0, 40.0), (3.0, 12.0)] {
+            let (u, v) = (c as f64 / scale, r as f64 / scale);
+            let (i, j) = (u.floor() as i64, v.floor() as i64);
+            let (fu, fv) = (u - u.floor(), v - v.floor());
+            let top = h(i, j) + (h(i + 1, j) - h(i, j)) * fu;
+            let bot = h(i, j + 1) + (h(i + 1, j + 1) - h(i, j + 1)) * fu;
+            z += amp * (top + (bot - top) * fv);
+        }
+        z as f32
+    })
+}
+
+/// The class (1 or 2) holding most of the `side`² patch at `(r, c)` of `classes`.
+fn majority(classes: &Array2<f32>, r: usize, c: usize, side: usize) -> f32 {
+    let ones = classes
+        .slice(ndarray::s![r..r + side, c..c + side])
+        .iter()
+        .filter(|&&v| v == 1.0)
+        .count();
+    if 2 * ones >= side * side {
+        1.0
+    } else {
+        2.0
+    }
+}
+
+#[test]
+fn a_dictionary_with_a_class_layer_matches_class_consistent_atoms_more_often() {
+    use terrasynth_core::dictionary::{centre_normalise, patch_mean_slope, MatchWeights, Matcher};
+    use terrasynth_core::landscape::classes::{class_layers, class_values};
+    let (n, patch, cell_m) = (96usize, 8usize, 10.0f64);
+    // The exemplar: class 1 on the west half, class 2 on the east half.
+    let elevation = noise_terrain(n, n, 11);
+    let classes = Array2::from_shape_fn((n, n), |(_, c)| if c < n / 2 { 1.0f32 } else { 2.0 });
+    let values = class_values(&classes).unwrap();
+    assert_eq!(values, [1, 2]);
+    let with = Exemplar {
+        elevation: elevation.clone(),
+        valid: None,
+        cell_m,
+        layers: class_layers("classes", &classes, &values),
+    };
+    let without = Exemplar {
+        layers: Vec::new(),
+        ..with.clone()
+    };
+    let o = opts(patch, 4, 48, Learning::Medoids { iterations: 3 });
+    let dict_with = std::sync::Arc::new(build(&[with], &o, &mut quiet()).unwrap());
+    let dict_without = std::sync::Arc::new(build(&[without], &o, &mut quiet()).unwrap());
+    assert_eq!(
+        dict_with.layers[0].kind,
+        LayerKind::Class {
+            group: "classes".into()
+        }
+    );
+    let elevation_only = MatchWeights {
+        elevation: 1.0,
+        altitude: 0.0,
+        slope: 0.0,
+        layers: Vec::new(),
+    };
+    let with_class_term = MatchWeights {
+        layers: vec![("classes".into(), 1.0)],
+        ..elevation_only.clone()
+    };
+    let m_with = Matcher::new(dict_with.clone(), &with_class_term).unwrap();
+    let m_without = Matcher::new(dict_without.clone(), &elevation_only).unwrap();
+    // Queries from other terrain with classes split north/south (so the exemplar's west/east
+    // split cannot be read from position either): the low-resolution patch (2×2 means) of
+    // every 8² window, and for the class term its class probabilities.
+    let q_elev = noise_terrain(n, n, 29);
+    let q_classes = Array2::from_shape_fn((n, n), |(r, _)| if r < n / 2 { 1.0f32 } else { 2.0 });
+    let lo = patch / 2;
+    let (mut agree_with, mut agree_without, mut total) = (0usize, 0usize, 0usize);
+    let mut scratch = Default::default();
+    for r in (0..n - patch).step_by(patch) {
+        for c in (0..n - patch).step_by(patch) {
+            let down = |a: &Array2<f32>, pred: &dyn Fn(f32) -> f32| -> Vec<f32> {
+                let mut v = Vec::with_capacity(lo * lo);
+                for i in 0..lo {
+                    for j in 0..lo {
+                        let s: f32 = (0..4)
+                            .map(|k| pred(a[[r + 2 * i + k / 2, c + 2 * j + k % 2]]))
+                            .sum();
+                        v.push(s / 4.0);
+                    }
+                }
+                v
+            };
+            let raw = down(&q_elev, &|x| x);
+            let mut elev = vec![0.0f32; lo * lo];
+            let (mean, _) = centre_normalise(&raw, &mut elev);
+            let base = terrasynth_core::dictionary::matching::Query {
+                elevation: elev,
+                mean_alt: mean,
+                mean_slope: patch_mean_slope(&raw, lo, (2.0 * cell_m) as f32),
+                layers: Vec::new(),
+            };
+            let q_with = terrasynth_core::dictionary::matching::Query {
+                layers: vec![
+                    down(&q_classes, &|x| f32::from(x == 1.0)),
+                    down(&q_classes, &|x| f32::from(x == 2.0)),
+                ],
+                ..base.clone()
+            };
+            let want = majority(&q_classes, r, c, patch);
+            let class_of = |d: &Dictionary, i: usize| {
+                let s = d.sources[i];
+                majority(&classes, s.row as usize, s.col as usize, patch)
+            };
+            let (a, _) = m_with.best_match(&q_with, &mut scratch);
+            let (b, _) = m_without.best_match(&base, &mut scratch);
+            agree_with += usize::from(class_of(&dict_with, a) == want);
+            agree_without += usize::from(class_of(&dict_without, b) == want);
+            total += 1;
+        }
+    }
+    let (fw, fo) = (
+        agree_with as f64 / total as f64,
+        agree_without as f64 / total as f64,
+    );
+    eprintln!(
+        "class-consistent matches: with {agree_with}/{total}, without {agree_without}/{total}"
+    );
+    // With the class term nearly every match lies in the query's class; without it, elevation
+    // alone (the same statistics on both halves) picks either class.
+    assert!(fw >= 0.9, "with the class term: {agree_with}/{total}");
+    assert!(
+        fw >= fo + 0.2,
+        "with {fw:.2} vs without {fo:.2} ({total} queries)"
+    );
+}
