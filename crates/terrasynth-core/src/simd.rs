@@ -34,3 +34,74 @@ impl Isa {
         Isa::Baseline
     }
 }
+
+impl Isa {
+    /// [`Isa::detect`], detected once per process.
+    pub fn current() -> Self {
+        static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *ISA.get_or_init(Isa::detect)
+    }
+}
+
+/// `acc[i] += w · src[i]` over the shorter of the two slices: one multiplication and one
+/// addition per element (never fused), hence the same bits in every build; the widest build
+/// [`Isa::current`] allows.
+#[inline]
+pub fn add_scaled(acc: &mut [f32], w: f32, src: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    match Isa::current() {
+        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
+        Isa::Avx512 => return unsafe { add_scaled_avx512(acc, w, src) },
+        Isa::Avx2 => return unsafe { add_scaled_avx2(acc, w, src) },
+        Isa::Baseline => {}
+    }
+    add_scaled_plain(acc, w, src);
+}
+
+#[inline(always)]
+fn add_scaled_plain(acc: &mut [f32], w: f32, src: &[f32]) {
+    for (a, &v) in acc.iter_mut().zip(src) {
+        *a += w * v;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn add_scaled_avx2(acc: &mut [f32], w: f32, src: &[f32]) {
+    add_scaled_plain(acc, w, src);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn add_scaled_avx512(acc: &mut [f32], w: f32, src: &[f32]) {
+    add_scaled_plain(acc, w, src);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn add_scaled_equals_the_plain_loop_bit_for_bit() {
+        for n in [0usize, 1, 7, 16, 33, 1000] {
+            let src: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin() * 1e3).collect();
+            let start: Vec<f32> = (0..n).map(|i| (i as f32 * 0.11).cos() * 7.0).collect();
+            let (mut fast, mut plain) = (start.clone(), start.clone());
+            add_scaled(&mut fast, 0.3137, &src);
+            for (p, &v) in plain.iter_mut().zip(&src) {
+                *p += 0.3137 * v;
+            }
+            assert!(fast
+                .iter()
+                .zip(&plain)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+            // Only the overlap is touched.
+            let mut short = start.clone();
+            add_scaled(&mut short, 2.0, &src[..n / 2]);
+            assert!(short[n / 2..]
+                .iter()
+                .zip(&start[n / 2..])
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+}

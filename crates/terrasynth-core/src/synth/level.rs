@@ -1000,10 +1000,7 @@ fn fir_phase<const N: usize>(src: &[f32], start: usize, w: &[f32; N], out: &mut 
     out.fill(0.0);
     let n = out.len();
     for (t, &wt) in w.iter().enumerate() {
-        let s = &src[start + t..start + t + n];
-        for (o, &v) in out.iter_mut().zip(s) {
-            *o += wt * v;
-        }
+        crate::simd::add_scaled(out, wt, &src[start + t..start + t + n]);
     }
 }
 
@@ -1055,9 +1052,7 @@ fn correct_n<const N: usize>(
                     up.iter_mut().for_each(|u| *u = 0.0);
                     for (t, wt) in w.iter().enumerate() {
                         let i = (ky + t as i64 - rw.row0) as usize * nw.cols;
-                        for (u, hv) in up.iter_mut().zip(&horiz[i..i + nw.cols]) {
-                            *u += wt * hv;
-                        }
+                        crate::simd::add_scaled(up, *wt, &horiz[i..i + nw.cols]);
                     }
                     let grow = &g.row(y)[(nw.col0 - g.w.col0) as usize..];
                     for ((v, gv), u) in o.iter_mut().zip(grow).zip(up.iter()) {
