@@ -24,7 +24,7 @@ start=$(date +%s.%N)
 "$BIN" dictionary build --kind gradient --default "${ex[@]}" --output "$OUT/heldout.grad"
 echo "held-out gradient tile set built in $(echo "$(date +%s.%N) - $start" | bc) s" >&2
 
-OUT="$OUT/realism" DICT="$OUT/heldout.grad" BIN="$BIN" scripts/realism.sh
+DICT="$OUT/heldout.grad" OUT="$OUT/realism" BIN="$BIN" scripts/realism.sh
 
 # Flood extent at 128² (crops inside the held-out windows).
 CROPS=("talas 1700,700" "kyrgyz 2200,800" "alai 1400,1400" "pamir 1900,1500" "karatau 400,100" "steppe 900,200")
