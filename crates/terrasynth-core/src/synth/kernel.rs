@@ -191,10 +191,7 @@ fn upsample_patch_n<const N: usize>(
         dst.fill(0.0);
         for t in 0..N {
             let w = wts[r][t];
-            let src = &rows[idx[r][t] * hi..idx[r][t] * hi + hi];
-            for (d, &v) in dst.iter_mut().zip(src) {
-                *d += w * v;
-            }
+            crate::simd::add_scaled(dst, w, &rows[idx[r][t] * hi..idx[r][t] * hi + hi]);
         }
     }
 }
