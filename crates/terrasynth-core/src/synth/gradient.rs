@@ -132,21 +132,13 @@ impl GradientAmplifier {
     /// parent pixels under the blocks of the four lattices covering `out`, widened by
     /// `T/4 + 2` (the staggered tiles' reach and the Hermite tangents).
     pub fn parent_window_for(&self, out: Window) -> Window {
-        let t = self.t();
-        let m = t / 4 + 2;
-        let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-        for (ox, oy) in self.lattices() {
-            let (i0, i1, j0, j1) = self.blocks(out, ox, oy);
-            x0 = x0.min(i0 * t + ox);
-            x1 = x1.max(i1 * t + ox);
-            y0 = y0.min(j0 * t + oy);
-            y1 = y1.max(j1 * t + oy);
-        }
+        let m = self.t() / 4 + 2;
+        let r = self.block_region(out);
         Window::from_bounds(
-            x0.div_euclid(2) - m,
-            y0.div_euclid(2) - m,
-            x1.div_euclid(2) + m,
-            y1.div_euclid(2) + m,
+            r.col0.div_euclid(2) - m,
+            r.row0.div_euclid(2) - m,
+            r.col1().div_euclid(2) + m,
+            r.row1().div_euclid(2) + m,
         )
     }
 
