@@ -32,6 +32,8 @@ RUNS=(
     "default-floor default,floor=0"
     "default+power3 default,power=3"
     "default+slopemod default,slopemod"
+    "default+octave default,octave=1"
+    "default+octave+split default,octave=1,split"
 )
 for run in "${RUNS[@]}"; do
     read -r name levers <<<"$run"

@@ -85,7 +85,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     config.server.store_dir = store.into();
     // The configured worlds and those created through the admin API, as the server loads them.
     let state = terrasynth::server::startup::build_state(&config)?;
-    let (name, centre) = match &args[1..] {
+    let (name, centre) = match args.get(1..).unwrap_or_default() {
         [] => ("tienshan", CENTRE_Z10),
         [name, x, y] => (name.as_str(), (x.parse()?, y.parse()?)),
         _ => return Err("usage: served_realism [STORE_DIR [WORLD X10 Y10]]".into()),

@@ -130,6 +130,9 @@ pub struct Amplifier {
     detail: Vec<f32>,
     /// Per atom: the RMS of its detail part.
     detail_rms: Vec<f32>,
+    /// Per atom: the RMS of its detail part over the RMS of its low atom's finest octave
+    /// ([`Levers::octave_match`]; 0 where that octave is flat).
+    detail_per_octave: Vec<f32>,
     /// Whether extra dictionary layers are reconstructed too.
     with_layers: bool,
     /// Per dictionary layer: whether it is reconstructed (when `with_layers`).
@@ -174,6 +177,7 @@ impl Amplifier {
             smooth: Vec::new(),
             detail: Vec::new(),
             detail_rms: Vec::new(),
+            detail_per_octave: Vec::new(),
             matcher: Matcher::new(dict.clone(), weights)?,
             dict,
             patch,
@@ -252,6 +256,17 @@ impl Amplifier {
             .map(|d| {
                 let ss: f64 = d.iter().map(|&v| f64::from(v) * f64::from(v)).sum();
                 (ss / p2.max(1) as f64).sqrt() as f32
+            })
+            .collect();
+        let mut octave = OctaveScratch::default();
+        self.detail_per_octave = (0..dict.n_atoms)
+            .map(|i| {
+                let oct = finest_octave_rms(dict.lo_atom(i), patch / 2, &mut octave);
+                if oct > 0.0 {
+                    self.detail_rms[i] / oct
+                } else {
+                    0.0
+                }
             })
             .collect();
         self.sparsity = match self.levers.sparsity {
@@ -421,6 +436,7 @@ impl Amplifier {
             .collect();
         let pw = parent.window;
         let roughness = self.levers.roughness;
+        let octave_match = self.levers.octave_match;
         let floor = self.levers.floor_m * (parent_cell_m / 2000.0).max(0.0).powf(0.7);
         (0..nj * ni)
             .into_par_iter()
@@ -466,7 +482,12 @@ impl Amplifier {
                     }
                     let (atom, dot) = self.matcher.best_match(query, scratch);
                     let detail_coef = if roughness > 0.0 {
-                        let oct = roughness * finest_octave_rms(raw, lo, octave);
+                        let rough = if octave_match > 0.0 {
+                            octave_match * self.detail_per_octave[atom]
+                        } else {
+                            roughness
+                        };
+                        let oct = rough * finest_octave_rms(raw, lo, octave);
                         let target = (oct * oct + floor * floor).sqrt();
                         let own = self.detail_rms[atom];
                         if own > 0.0 {

@@ -31,6 +31,11 @@ pub struct Levers {
     /// the detail RMS is `√((roughness·octave)² + (floor·(cell/1 km)^0.7)²)` (`cell`: this level's
     /// cell size). Plains carry micro-relief that their smooth coarse octaves do not announce.
     pub floor_m: f32,
+    /// When above 0 (and [`Levers::roughness`] above 0), the roughness of a primitive is this
+    /// factor times its matched atom's own ratio of detail RMS to finest-octave RMS (the
+    /// exemplar's octave-to-detail decay where that atom was cut), instead of one ratio for every
+    /// terrain: the atom is scaled so that its finest octave matches the parent's.
+    pub octave_match: f32,
     /// Up-sampling kernel of the elevation's residual correction.
     pub kernel: KernelKind,
     /// Number of residual-correction passes of the elevation.
@@ -68,6 +73,7 @@ impl Default for Levers {
             blend_power: 1,
             roughness: 0.58,
             floor_m: 3.0,
+            octave_match: 0.0,
             kernel: KernelKind::Kaiser6,
             passes: 2,
             breach: 16,
@@ -90,6 +96,7 @@ impl Levers {
             blend_power: 1,
             roughness: 0.0,
             floor_m: 0.0,
+            octave_match: 0.0,
             kernel: KernelKind::CatmullRom,
             passes: 4,
             breach: 0,
@@ -104,7 +111,7 @@ impl Levers {
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
-    /// pits), `floor=M`, `sparsity=S` (0: the dictionary's).
+    /// pits), `floor=M`, `octave=G`, `sparsity=S` (0: the dictionary's).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -134,6 +141,7 @@ impl Levers {
                 "parent" => l.parent_smooth = on,
                 "slopemod" => l.slope_mod = on,
                 "floor" => l.floor_m = num(0.0, 100.0)? as f32,
+                "octave" => l.octave_match = num(0.0, 4.0)? as f32,
                 "power" => l.blend_power = num(1.0, 8.0)? as u32,
                 "rough" => l.roughness = num(0.0, 4.0)? as f32,
                 "passes" => l.passes = num(0.0, 12.0)? as u32,
@@ -173,6 +181,8 @@ mod tests {
         assert_eq!(l.kernel, KernelKind::Kaiser6);
         assert_eq!((l.breach, l.blend_power, l.consistent_split), (4, 3, false));
         assert_eq!(l.passes, 4);
+        assert_eq!(Levers::parse("octave=1.5").unwrap().octave_match, 1.5);
+        assert!(Levers::parse("octave=5").is_err());
         assert!(Levers::parse("rough").is_err());
         assert!(Levers::parse("breach=1000").is_err());
         assert!(Levers::parse("kernel=lanczos").is_err());
