@@ -34,6 +34,7 @@ RUNS=(
     "default+slopemod default,slopemod"
     "default+octave default,octave=1"
     "default+octave+split default,octave=1,split"
+    "default+destripe default,destripe"
 )
 for run in "${RUNS[@]}"; do
     read -r name levers <<<"$run"

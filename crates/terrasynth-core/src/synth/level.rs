@@ -143,6 +143,29 @@ pub struct Amplifier {
     omp: Option<Arc<Omp>>,
 }
 
+/// Takes the row and column means out of a `side × side` patch (the parts constant along a
+/// pixel axis), keeping its overall mean.
+fn remove_axis_means(x: &mut [f32], side: usize) {
+    let n = side as f64;
+    let mut rows = vec![0.0f64; side];
+    let mut cols = vec![0.0f64; side];
+    let mut all = 0.0f64;
+    for r in 0..side {
+        for c in 0..side {
+            let v = f64::from(x[r * side + c]);
+            rows[r] += v / n;
+            cols[c] += v / n;
+            all += v / (n * n);
+        }
+    }
+    for r in 0..side {
+        for c in 0..side {
+            let v = f64::from(x[r * side + c]);
+            x[r * side + c] = (v - rows[r] - cols[c] + 2.0 * all) as f32;
+        }
+    }
+}
+
 /// The blending weights `α = (1 − r²)³`, `r = |p − c| / step`, of a primitive over its
 /// `patch × patch` square (`c` its centre, `step = patch/2`); 0 outside the disc. Compact
 /// terrains ([`super::compact`]) blend with the same weights.
@@ -249,6 +272,9 @@ impl Amplifier {
                 .zip(sm.iter())
             {
                 *d = h - m;
+            }
+            if self.levers.destripe {
+                remove_axis_means(&mut detail[i * p2..(i + 1) * p2], patch);
             }
         }
         self.detail_rms = detail

@@ -54,6 +54,9 @@ pub struct Levers {
     /// (interpolated to the pixel, at most 3): flat valley floors get little detail, steep slopes
     /// more.
     pub slope_mod: bool,
+    /// Take out of each atom's detail its row and column means (the parts constant along a pixel
+    /// axis: the exemplar grid's stripes) before any use.
+    pub destripe: bool,
     /// Atoms per primitive (the sparse construction tree of Guérin et al.): the matcher's atom
     /// plus up to `sparsity − 1` more, chosen by Orthogonal Matching Pursuit on what the first
     /// leaves of the parent patch, with least-squares coefficients for all of them. 0: the
@@ -80,6 +83,7 @@ impl Default for Levers {
             breach_flat: 4,
             steep_slope: 0.05,
             slope_mod: false,
+            destripe: false,
             sparsity: 0,
         }
     }
@@ -103,6 +107,7 @@ impl Levers {
             breach_flat: 0,
             steep_slope: 0.0,
             slope_mod: false,
+            destripe: false,
             sparsity: 0,
         }
     }
@@ -140,6 +145,7 @@ impl Levers {
                 "split" => l.consistent_split = on,
                 "parent" => l.parent_smooth = on,
                 "slopemod" => l.slope_mod = on,
+                "destripe" => l.destripe = on,
                 "floor" => l.floor_m = num(0.0, 100.0)? as f32,
                 "octave" => l.octave_match = num(0.0, 4.0)? as f32,
                 "power" => l.blend_power = num(1.0, 8.0)? as u32,
