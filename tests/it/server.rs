@@ -949,6 +949,32 @@ fn the_background_prefill_moves_while_every_global_pool_worker_waits() {
 }
 
 #[test]
+fn every_world_s_background_prefill_shares_one_pool() {
+    // Two worlds with cold chains: their background jobs run on one process-wide pool, so the
+    // process holds at most rayon's default thread count of prefill threads (a pool per world
+    // held that many per world).
+    use terrasynth_tiles::elevation::PREFILL_THREAD_PREFIX;
+    let prefill_threads = || {
+        std::fs::read_dir("/proc/self/task")
+            .unwrap()
+            .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("comm")).ok())
+            .filter(|name| name.starts_with(PREFILL_THREAD_PREFIX))
+            .count()
+    };
+    let (a, b) = (small_world(), small_world());
+    a.elevation_tile(11, 1434, 770).unwrap();
+    b.elevation_tile(11, 1434, 770).unwrap();
+    assert!(a.stats().windows_synthesized > 0 && b.stats().windows_synthesized > 0);
+    let n = prefill_threads();
+    wait_for_prefill(&a);
+    wait_for_prefill(&b);
+    assert!(
+        (1..=rayon::current_num_threads()).contains(&n),
+        "{n} prefill threads for two worlds"
+    );
+}
+
+#[test]
 fn a_cold_chain_of_windows_equals_the_chain_of_cached_tiles() {
     // World A: a zoom-11 tile in an area nobody visited goes down its chain by windows (zooms 10
     // and 9 amplified directly); world B: the same tile after 3×3 blocks of its ancestors were

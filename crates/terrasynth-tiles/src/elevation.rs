@@ -21,7 +21,7 @@
 //! of [`Amplifier::parent_window_for`]) instead of whole 256² tiles: about an eighth of the work
 //! for a zoom-14 tile six levels above its native zoom. Window invariance makes the values
 //! bit-identical to the tile path. Once the tile is done, the parent tiles themselves are
-//! computed in the background on a thread pool of their own ([`Prefill`]), so that the
+//! computed in the background on a pool shared by every world ([`Prefill`]), so that the
 //! neighbours that follow find their parents cached; every level is a cancellation point, and
 //! an abandoned tile queues nothing.
 
@@ -75,34 +75,39 @@ const PREFILL_QUEUE: usize = 256;
 /// Parent tiles to compute in the background after a cold chain: one job at a time per world,
 /// started when tiles are queued and ending when the queue is empty.
 ///
-/// The job runs on a thread pool of its own, never on rayon's global pool: other threads (the
-/// export renders its tiles on the global pool) may wait for the tiles it computes, and if its
-/// amplification's parallel loops needed the global pool's workers while every one of them
-/// waited for it, nothing would move (it hung an export in CI before).
+/// The jobs of every world run on one process-wide pool ([`prefill_pool`]), never on rayon's
+/// global pool: other threads (the export renders its tiles on the global pool) may wait for the
+/// tiles a job computes, and if its amplification's parallel loops needed the global pool's
+/// workers while every one of them waited for it, nothing would move (it hung an export in CI
+/// before).
 #[derive(Debug, Default)]
 struct Prefill {
     queue: Mutex<VecDeque<TileKey>>,
     running: AtomicBool,
-    /// Built at the first cold chain; `None` if the threads could not be started.
-    pool: OnceLock<Option<rayon::ThreadPool>>,
 }
 
 impl Prefill {
     fn queue(&self) -> std::sync::MutexGuard<'_, VecDeque<TileKey>> {
         self.queue.lock().unwrap_or_else(|p| p.into_inner())
     }
+}
 
-    /// The background job's pool (rayon's default thread count).
-    fn pool(&self) -> Option<&rayon::ThreadPool> {
-        self.pool
-            .get_or_init(|| {
-                rayon::ThreadPoolBuilder::new()
-                    .thread_name(|i| format!("elevation-prefill-{i}"))
-                    .build()
-                    .ok()
-            })
-            .as_ref()
-    }
+/// Name prefix of the background prefill's threads.
+pub const PREFILL_THREAD_PREFIX: &str = "ts-prefill-";
+
+/// The background prefill's pool, shared by every world of the process (rayon's default thread
+/// count), built at the first cold chain; `None` if its threads could not be started. One pool
+/// for all worlds: a server with many worlds holds no idle threads per world, and the
+/// background work of all of them together never takes more than the machine's cores.
+fn prefill_pool() -> Option<&'static rayon::ThreadPool> {
+    static POOL: OnceLock<Option<rayon::ThreadPool>> = OnceLock::new();
+    POOL.get_or_init(|| {
+        rayon::ThreadPoolBuilder::new()
+            .thread_name(|i| format!("{PREFILL_THREAD_PREFIX}{i}"))
+            .build()
+            .ok()
+    })
+    .as_ref()
 }
 
 /// Largest whole-world window of the native zoom, pixels.
@@ -401,7 +406,7 @@ impl ElevationLevels {
             self.prefill.running.store(false, Ordering::Release);
             return;
         };
-        match self.prefill.pool() {
+        match prefill_pool() {
             Some(pool) => pool.spawn(move || me.run_prefill()),
             None => {
                 // No threads: requests compute the tiles when they need them.
@@ -411,7 +416,7 @@ impl ElevationLevels {
         }
     }
 
-    /// The background job (on [`Prefill`]'s own pool): computes queued tiles by the tile route
+    /// The background job (on the prefill pool, [`prefill_pool`]): computes queued tiles by the tile route
     /// (so that their parents are cached too) until the queue is empty. Nobody can abandon this
     /// work.
     fn run_prefill(&self) {
