@@ -22,7 +22,7 @@ arguments always give the same file. Only the Python 3 standard library is used.
 
 Usage: make_trace.py [--base-url URL] [--world NAME] [--hillshade-zooms 11,13]
                      [--retina-zooms 12] [--landscape-zooms 10,14] [--splat-zooms 13]
-                     [--instance-zooms 14] [--stats]
+                     [--instance-zooms 14] [--water-zooms 10,14] [--stats]
 """
 
 import argparse
@@ -105,7 +105,7 @@ def parse_zooms(text):
 
 
 def generate(hillshade_zooms, retina_zooms, landscape_zooms=frozenset(), splat_zooms=frozenset(),
-             instance_zooms=frozenset()):
+             instance_zooms=frozenset(), water_zooms=frozenset()):
     """Yield (zoom, layer, suffix, x, y) in request order; `suffix` is what follows the tile
     row in the URL (`@2x`, a query such as `?set=1`, or another format such as `.mvt`)."""
     cx, cy = snap(*lonlat_to_tile(*TALAS, 9))
@@ -140,6 +140,8 @@ def generate(hillshade_zooms, retina_zooms, landscape_zooms=frozenset(), splat_z
                     yield zoom, "vegetation", "", x, y
                 if zoom in instance_zooms:
                     yield zoom, "instances", ".mvt", x, y
+                if zoom in water_zooms:
+                    yield zoom, "water", "", x, y
 
 
 def main():
@@ -161,6 +163,8 @@ def main():
     parser.add_argument("--instance-zooms", default="",
                         help="zooms at which the plant and rock instances (.mvt) are streamed "
                              "(default: none)")
+    parser.add_argument("--water-zooms", default="",
+                        help="zooms at which the water layer (.png) is shown (default: none)")
     parser.add_argument("--stats", action="store_true",
                         help="print request counts per zoom and layer to stderr")
     args = parser.parse_args()
@@ -171,9 +175,10 @@ def main():
     landscape = parse_zooms(args.landscape_zooms)
     splat = parse_zooms(args.splat_zooms)
     instances = parse_zooms(args.instance_zooms)
+    water = parse_zooms(args.water_zooms)
     counts = {}
     out = sys.stdout
-    for zoom, layer, suffix, x, y in generate(hillshade, retina, landscape, splat, instances):
+    for zoom, layer, suffix, x, y in generate(hillshade, retina, landscape, splat, instances, water):
         if suffix.startswith("."):
             url = f"{base}/tiles/{args.world}/{layer}/{zoom}/{x}/{y}{suffix}"
         elif suffix.startswith("?"):
