@@ -23,6 +23,7 @@ RUNS=(
     "parent base,parent"
     "power3 base,power=3"
     "slopemod base,slopemod"
+    "stripes base,stripes=3"
     "default default"
     "default-rough default,rough=0"
     "default-kaiser default,kernel=cr,passes=4"
@@ -34,7 +35,9 @@ RUNS=(
     "default+slopemod default,slopemod"
     "default+octave default,octave=1"
     "default+octave+split default,octave=1,split"
-    "default+destripe default,destripe"
+    "default+stripes3 default,stripes=3"
+    "default+stripes1 default,stripes=1"
+    "default+nostripes default,stripes=0"
 )
 for run in "${RUNS[@]}"; do
     read -r name levers <<<"$run"

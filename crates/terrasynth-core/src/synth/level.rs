@@ -143,9 +143,11 @@ pub struct Amplifier {
     omp: Option<Arc<Omp>>,
 }
 
-/// Takes the row and column means out of a `side × side` patch (the parts constant along a
-/// pixel axis), keeping its overall mean.
-fn remove_axis_means(x: &mut [f32], side: usize) {
+/// Caps the stripes of a `side × side` detail patch: the energy of its row means about the
+/// patch mean (and separately of its column means) is scaled down to at most `cap / side` of the
+/// patch's energy about its mean before the cap (isotropic detail holds about `1/side` there);
+/// `cap = 0` removes them. The patch mean is kept.
+fn cap_stripes(x: &mut [f32], side: usize, cap: f32) {
     let n = side as f64;
     let mut rows = vec![0.0f64; side];
     let mut cols = vec![0.0f64; side];
@@ -158,10 +160,23 @@ fn remove_axis_means(x: &mut [f32], side: usize) {
             all += v / (n * n);
         }
     }
+    let total: f64 = x.iter().map(|&v| (f64::from(v) - all).powi(2)).sum();
+    let share = f64::from(cap) / n;
+    // Scale of the row (column) component so that its energy is at most `share · total`.
+    let scale = |means: &[f64]| -> f64 {
+        let e: f64 = n * means.iter().map(|m| (m - all).powi(2)).sum::<f64>();
+        if e <= share * total || e <= 0.0 {
+            1.0
+        } else {
+            (share * total / e).sqrt()
+        }
+    };
+    let (kr, kc) = (scale(&rows), scale(&cols));
     for r in 0..side {
         for c in 0..side {
             let v = f64::from(x[r * side + c]);
-            x[r * side + c] = (v - rows[r] - cols[c] + 2.0 * all) as f32;
+            let d = (1.0 - kr) * (rows[r] - all) + (1.0 - kc) * (cols[c] - all);
+            x[r * side + c] = (v - d) as f32;
         }
     }
 }
@@ -273,8 +288,12 @@ impl Amplifier {
             {
                 *d = h - m;
             }
-            if self.levers.destripe {
-                remove_axis_means(&mut detail[i * p2..(i + 1) * p2], patch);
+            if self.levers.stripe_cap.is_finite() {
+                cap_stripes(
+                    &mut detail[i * p2..(i + 1) * p2],
+                    patch,
+                    self.levers.stripe_cap,
+                );
             }
         }
         self.detail_rms = detail
@@ -1128,6 +1147,46 @@ fn correct_n<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_stripe_cap_removes_and_caps_row_and_column_means() {
+        let side = 8;
+        // Horizontal stripes (each row constant) over a checkerboard (every row and column mean 0).
+        let stripe = |r: usize| [3.0f32, -1.0, 2.0, -4.0, 1.0, 0.0, -2.0, 1.0][r];
+        let board = |r: usize, c: usize| if (r + c) % 2 == 0 { 1.0f32 } else { -1.0 };
+        let patch: Vec<f32> = (0..side * side)
+            .map(|k| 5.0 + stripe(k / side) + board(k / side, k % side))
+            .collect();
+        // Cap 0: the stripes go, the checkerboard and the mean stay.
+        let mut x = patch.clone();
+        cap_stripes(&mut x, side, 0.0);
+        for (k, v) in x.iter().enumerate() {
+            assert!(
+                (v - (5.0 + board(k / side, k % side))).abs() < 1e-5,
+                "{k}: {v}"
+            );
+        }
+        // Cap 1: the stripes' energy becomes 1/8 of the patch's energy about its mean before the
+        // cap. Stripes hold 8·Σ stripe² = 8·36 = 288, the checkerboard 64; scaled by k,
+        // k²·288 = (288 + 64)/8 = 44.
+        let mut x = patch.clone();
+        cap_stripes(&mut x, side, 1.0);
+        let k = (44.0f32 / 288.0).sqrt();
+        for (i, v) in x.iter().enumerate() {
+            let want = 5.0 + k * stripe(i / side) + board(i / side, i % side);
+            assert!((v - want).abs() < 1e-4, "{i}: {v} vs {want}");
+        }
+        // A cap above the stripes' share leaves the patch alone; so does a patch without stripes.
+        let mut x = patch.clone();
+        cap_stripes(&mut x, side, 8.0);
+        assert_eq!(x, patch);
+        let plain: Vec<f32> = (0..side * side)
+            .map(|k| board(k / side, k % side))
+            .collect();
+        let mut x = plain.clone();
+        cap_stripes(&mut x, side, 0.0);
+        assert!(x.iter().zip(&plain).all(|(a, b)| (a - b).abs() < 1e-6));
+    }
     use crate::dictionary::build::{build, BuildOptions, Exemplar};
     use crate::dictionary::derive::derived_layers;
     use crate::raster::CellSizes;

@@ -54,9 +54,12 @@ pub struct Levers {
     /// (interpolated to the pixel, at most 3): flat valley floors get little detail, steep slopes
     /// more.
     pub slope_mod: bool,
-    /// Take out of each atom's detail its row and column means (the parts constant along a pixel
-    /// axis: the exemplar grid's stripes) before any use.
-    pub destripe: bool,
+    /// Cap on the stripes of each atom's detail: the energy of its row means (and, separately,
+    /// of its column means — the parts constant along a pixel axis, where the exemplar grid's
+    /// stripes live) is scaled down to at most this multiple of the share isotropic detail
+    /// holds there (`1/patch` of the detail's energy before the cap). 0 removes them; infinity
+    /// leaves the atoms as they are.
+    pub stripe_cap: f32,
     /// Atoms per primitive (the sparse construction tree of Guérin et al.): the matcher's atom
     /// plus up to `sparsity − 1` more, chosen by Orthogonal Matching Pursuit on what the first
     /// leaves of the parent patch, with least-squares coefficients for all of them. 0: the
@@ -83,7 +86,7 @@ impl Default for Levers {
             breach_flat: 4,
             steep_slope: 0.05,
             slope_mod: false,
-            destripe: false,
+            stripe_cap: f32::INFINITY,
             sparsity: 0,
         }
     }
@@ -107,7 +110,7 @@ impl Levers {
             breach_flat: 0,
             steep_slope: 0.0,
             slope_mod: false,
-            destripe: false,
+            stripe_cap: f32::INFINITY,
             sparsity: 0,
         }
     }
@@ -116,7 +119,7 @@ impl Levers {
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
-    /// pits), `floor=M`, `octave=G`, `sparsity=S` (0: the dictionary's).
+    /// pits), `floor=M`, `octave=G`, `stripes=F|off` (stripe cap), `sparsity=S` (0: the dictionary's).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -145,7 +148,12 @@ impl Levers {
                 "split" => l.consistent_split = on,
                 "parent" => l.parent_smooth = on,
                 "slopemod" => l.slope_mod = on,
-                "destripe" => l.destripe = on,
+                "stripes" => {
+                    l.stripe_cap = match value {
+                        Some("off") => f32::INFINITY,
+                        _ => num(0.0, 1e6)? as f32,
+                    }
+                }
                 "floor" => l.floor_m = num(0.0, 100.0)? as f32,
                 "octave" => l.octave_match = num(0.0, 4.0)? as f32,
                 "power" => l.blend_power = num(1.0, 8.0)? as u32,
@@ -189,6 +197,12 @@ mod tests {
         assert_eq!(l.passes, 4);
         assert_eq!(Levers::parse("octave=1.5").unwrap().octave_match, 1.5);
         assert!(Levers::parse("octave=5").is_err());
+        assert_eq!(Levers::parse("stripes=0").unwrap().stripe_cap, 0.0);
+        assert!(Levers::parse("stripes=off")
+            .unwrap()
+            .stripe_cap
+            .is_infinite());
+        assert!(Levers::parse("stripes=-1").is_err());
         assert!(Levers::parse("rough").is_err());
         assert!(Levers::parse("breach=1000").is_err());
         assert!(Levers::parse("kernel=lanczos").is_err());
