@@ -309,6 +309,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
                 ..wc.water.clone()
             },
             classes,
+            biomes: Vec::new(),
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         if let Some(why) = share_shortfall(&world) {
@@ -352,6 +353,7 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         classes: resolved
             .classes
             .map(|(config, raster)| WorldClasses { config, raster }),
+        biomes: Vec::new(),
         name: def.name,
     })
 }

@@ -87,6 +87,7 @@ fn lake_world() -> World {
             ..Default::default()
         },
         classes: None,
+        biomes: Vec::new(),
     })
     .unwrap()
 }
@@ -322,6 +323,7 @@ fn coast_world() -> World {
             ..Default::default()
         },
         classes: None,
+        biomes: Vec::new(),
     })
     .unwrap()
 }

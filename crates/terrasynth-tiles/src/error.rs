@@ -59,6 +59,9 @@ pub enum TileError {
     /// The world's landscape settings are invalid.
     #[error(transparent)]
     Landscape(#[from] LandscapeError),
+    /// A world's painted biomes are invalid ([`crate::biomes`]).
+    #[error("biomes: {0}")]
+    Biomes(String),
     /// Tile bytes could not be produced.
     #[error("cannot encode tile: {0}")]
     Encode(String),

@@ -17,6 +17,7 @@
 //! sockets and no HTTP types: the server translates HTTP into these calls.
 
 pub mod base_layers;
+pub mod biomes;
 pub mod cancel;
 pub mod chain;
 pub mod classes;
@@ -42,6 +43,7 @@ pub mod vegetation;
 pub mod water;
 pub mod world;
 
+pub use biomes::{BiomeWeights, WorldBiome};
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use chain::{Chain, DictionaryBand};
 pub use classes::{ClassWeights, WorldClasses};

@@ -25,6 +25,7 @@ use terrasynth_core::synth::{
 };
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
+use crate::biomes::{BiomeWeights, Biomes, WorldBiome};
 use crate::chain::{Chain, DictionaryBand};
 use crate::classes::{ClassWeights, WorldClasses};
 use crate::drainage::DrainageLevels;
@@ -74,6 +75,10 @@ pub struct WorldParts {
     /// Land-cover classes on the base's grid ([`crate::classes`]); `None`: no classes (a
     /// material's `class.<name>` term then names an unknown class).
     pub classes: Option<WorldClasses>,
+    /// Painted biomes ([`crate::biomes`]): several dictionaries, each with a weight raster on
+    /// the base's grid; empty: none. A biome world's `dictionaries` must be empty (the biomes
+    /// amplify every zoom).
+    pub biomes: Vec<WorldBiome>,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -126,6 +131,8 @@ pub struct World {
     center: [f64; 2],
     /// The chain's bands: zooms (`None`: every amplified zoom) and dictionary id.
     bands: Vec<(Option<ZoomBand>, String)>,
+    /// The biomes' names, in the order given (empty: not a biome world).
+    biome_names: Vec<String>,
     fingerprint: String,
     /// [`World::etag_seed`]: the hash states of tile ETags after the world's own part.
     etag_seeds: [sha2::Sha256; 2],
@@ -210,7 +217,12 @@ fn band_amplifier(
 }
 
 /// Hex SHA-256 of everything that determines a world's tiles.
-fn fingerprint(parts: &WorldParts, z_base: u8, classes: &ClassWeights) -> String {
+fn fingerprint(
+    parts: &WorldParts,
+    z_base: u8,
+    classes: &ClassWeights,
+    biomes: &BiomeWeights,
+) -> String {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
@@ -245,6 +257,15 @@ fn fingerprint(parts: &WorldParts, z_base: u8, classes: &ClassWeights) -> String
         h.update(classes.fingerprint_bytes());
         h.update(b"|");
     }
+    if !biomes.is_empty() {
+        // Absent before biomes: worlds without biomes keep their fingerprint.
+        h.update(b"biomes=");
+        for b in &parts.biomes {
+            h.update(format!("{}@{}|", b.name, b.id).as_bytes());
+        }
+        h.update(biomes.fingerprint_bytes());
+        h.update(b"|");
+    }
     for v in parts.base.data.iter() {
         h.update(v.to_bits().to_le_bytes());
     }
@@ -270,6 +291,25 @@ impl World {
             None => ClassWeights::default(),
         };
         parts.landscape.check_classes(&classes.names())?;
+        // Biomes, like classes, lie on the base's grid as given.
+        let biome_weights = if parts.biomes.is_empty() {
+            BiomeWeights::default()
+        } else {
+            if !parts.dictionaries.is_empty() {
+                return Err(TileError::Biomes(
+                    "a world takes `biomes` or `dictionary`/`dictionaries`, not both".into(),
+                ));
+            }
+            let w = BiomeWeights::of(&parts.biomes, &parts.base)?;
+            // The chain (unused while biomes amplify) and the bands listed: the biomes'
+            // dictionaries, the dominant one first.
+            let d = &parts.biomes[w.dominant()];
+            parts.dictionaries = vec![DictionaryBand::every_zoom(
+                d.dictionary.clone(),
+                d.id.clone(),
+            )];
+            w
+        };
         if matches!(parts.base.georef.crs, Crs::Projected(_)) {
             parts.base =
                 to_geographic(&parts.base).map_err(|e| TileError::Raster(e.to_string()))?;
@@ -293,7 +333,31 @@ impl World {
         let layer_amplifiers = Chain::new(&parts.dictionaries, |b| {
             band_amplifier(b, &parts.weights, levers, Some(&species))
         })?;
-        let fingerprint = fingerprint(&parts, extent.z_base, &classes);
+        let biomes = |species: Option<&[String]>| -> Result<_, TileError> {
+            if biome_weights.is_empty() {
+                return Ok(None);
+            }
+            let weights = Arc::new(biome_weights.clone());
+            let amplifiers = parts
+                .biomes
+                .iter()
+                .map(|b| {
+                    band_amplifier(
+                        &DictionaryBand::every_zoom(b.dictionary.clone(), b.id.clone()),
+                        &parts.weights,
+                        levers,
+                        species,
+                    )
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(Some(Biomes {
+                amplifiers,
+                weights,
+            }))
+        };
+        let elevation_biomes = biomes(None)?;
+        let vegetation_biomes = biomes(Some(&species))?;
+        let fingerprint = fingerprint(&parts, extent.z_base, &classes, &biome_weights);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
         let wet = parts.water.may_have_water();
@@ -302,7 +366,8 @@ impl World {
             parts.landscape.species.len(),
             wet,
         )
-        .saturating_add(classes.bytes());
+        .saturating_add(classes.bytes())
+        .saturating_add(biome_weights.bytes());
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
@@ -327,11 +392,16 @@ impl World {
             title: parts.title,
             attribution: parts.attribution,
             center,
-            bands: parts
-                .dictionaries
-                .iter()
-                .map(|b| (b.zooms, b.id.clone()))
-                .collect(),
+            bands: if parts.biomes.is_empty() {
+                parts
+                    .dictionaries
+                    .iter()
+                    .map(|b| (b.zooms, b.id.clone()))
+                    .collect()
+            } else {
+                parts.biomes.iter().map(|b| (None, b.id.clone())).collect()
+            },
+            biome_names: biome_weights.names().to_vec(),
             fingerprint,
             etag_seeds,
             elevation: ElevationLevels::new(
@@ -339,6 +409,7 @@ impl World {
                 parts.fill_m,
                 extent,
                 amplifiers,
+                elevation_biomes,
                 budget / 2,
                 budget / 64,
                 parts.water.clone(),
@@ -350,6 +421,7 @@ impl World {
                 landscape.clone(),
                 classes.clone(),
                 layer_amplifiers,
+                vegetation_biomes,
                 budget / 4 - water_bytes / 2,
             ),
             water: WaterLevels::new(water_bytes),
@@ -478,6 +550,12 @@ impl World {
     /// they were given.
     pub fn dictionary_bands(&self) -> &[(Option<ZoomBand>, String)] {
         &self.bands
+    }
+
+    /// The names of a biome world's biomes, in the order given (empty: not a biome world); their
+    /// dictionaries are [`World::dictionary_ids`], in the same order.
+    pub fn biome_names(&self) -> &[String] {
+        &self.biome_names
     }
 
     /// The landscape configuration.

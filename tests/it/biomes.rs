@@ -1,0 +1,254 @@
+//! Painted biomes (#15, acceptance 4): a world painted 1 for biome A everywhere serves the tiles
+//! of the world with A alone (every layer, bit for bit); across a painted boundary tiles stay
+//! seamless (the seam measure of [`crate::server::border_and_interior_steps`]) and carry each
+//! biome's own detail away from it; a biome world is deterministic, a tile alone equals the
+//! window of a block, and any window equals the same part of a larger one.
+
+use std::sync::Arc;
+
+use ndarray::{s, Array2};
+
+use terrasynth_core::dictionary::Dictionary;
+use terrasynth_core::raster::Grid;
+use terrasynth_core::synth::Window;
+use terrasynth_test_support::coherence::mosaic_of;
+use terrasynth_test_support::{
+    mini_georef, mini_world, mini_world_biomes, small_dictionary_of,
+    small_dictionary_with_vegetation, synthetic_terrain, tile_of,
+};
+use terrasynth_tiles::{World, WorldBiome};
+
+use crate::server::border_and_interior_steps;
+
+const ROWS: usize = 240;
+const COLS: usize = 288;
+/// The painted boundary: columns west of it are biome A's, east of it biome B's.
+const BOUNDARY_COL: usize = 144;
+
+fn base() -> Array2<f32> {
+    synthetic_terrain(ROWS, COLS, 3).mapv(|v| v + 1000.0)
+}
+
+/// Biome A: the tests' usual small dictionary (ridged terrain).
+fn dict_a() -> Arc<Dictionary> {
+    small_dictionary_with_vegetation(2)
+}
+
+/// Biome B: a dictionary of other terrain (another seed, a tenth of the relief, tilted).
+fn dict_b() -> Arc<Dictionary> {
+    let z = synthetic_terrain(160, 160, 9);
+    let low = Array2::from_shape_fn((160, 160), |(r, c)| {
+        0.1 * z[[r, c]] + 0.5 * r as f32 + 30.0 * ((c as f32) * 0.3).sin()
+    });
+    small_dictionary_of(low, 9, true)
+}
+
+fn biome(name: &str, d: Arc<Dictionary>, id: &str, w: impl Fn(usize, usize) -> f32) -> WorldBiome {
+    WorldBiome {
+        name: name.into(),
+        dictionary: d.into(),
+        id: id.into(),
+        weight: Grid::new(
+            Array2::from_shape_fn((ROWS, COLS), |(r, c)| w(r, c)),
+            mini_georef(),
+        ),
+    }
+}
+
+fn world_alone(d: Arc<Dictionary>, id: &str) -> World {
+    mini_world(base(), d, id, 11, 64 << 20)
+}
+
+/// A west of [`BOUNDARY_COL`], B east of it.
+fn painted_world() -> World {
+    mini_world_biomes(
+        base(),
+        vec![
+            biome("ridges", dict_a(), "a", |_, c| {
+                f32::from(u8::from(c < BOUNDARY_COL))
+            }),
+            biome("steppe", dict_b(), "b", |_, c| {
+                f32::from(u8::from(c >= BOUNDARY_COL))
+            }),
+        ],
+        11,
+        64 << 20,
+    )
+    .unwrap()
+}
+
+fn same_bits(a: &Array2<f32>, b: &Array2<f32>) -> bool {
+    a.dim() == b.dim() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
+/// Longitude of the painted boundary (the west edge of column [`BOUNDARY_COL`]).
+fn boundary_lon() -> f64 {
+    70.0 + BOUNDARY_COL as f64 / 240.0
+}
+
+/// Global pixel column of longitude `lon` at zoom `z` (the Web Mercator formula, written here).
+fn pixel_col(lon: f64, z: u8) -> f64 {
+    (lon + 180.0) / 360.0 * f64::from(1u32 << z) * 256.0
+}
+
+#[test]
+fn a_biome_painted_everywhere_serves_the_tiles_of_its_world_alone() {
+    let alone = world_alone(dict_a(), "a");
+    // B listed first with weight 0 everywhere, A with 1: A is the dominant biome, B is never
+    // computed, and nothing of the blend touches A's bits.
+    let painted = mini_world_biomes(
+        base(),
+        vec![
+            biome("steppe", dict_b(), "b", |_, _| 0.0),
+            biome("ridges", dict_a(), "a", |_, _| 1.0),
+        ],
+        11,
+        64 << 20,
+    )
+    .unwrap();
+    assert_eq!(painted.biome_names(), ["steppe", "ridges"]);
+    assert_eq!(painted.dictionary_ids(), ["b", "a"]);
+    let mut tiles = Vec::new();
+    for z in [8u8, 9, 10, 11] {
+        // Inside the base, and straddling its west edge (pixels outside it: the fill).
+        tiles.push((z, tile_of(70.5, 42.5, z)));
+        tiles.push((z, tile_of(70.0, 42.5, z)));
+    }
+    for (z, (x, y)) in tiles {
+        let what = format!("{z}/{x}/{y}");
+        assert!(
+            same_bits(
+                &alone.elevation_tile(z, x, y).unwrap(),
+                &painted.elevation_tile(z, x, y).unwrap()
+            ),
+            "elevation {what}"
+        );
+        let (va, vp) = (
+            alone.vegetation_tile(z, x, y).unwrap(),
+            painted.vegetation_tile(z, x, y).unwrap(),
+        );
+        assert_eq!(va.len(), vp.len());
+        for (a, p) in va.iter().zip(vp.iter()) {
+            assert!(same_bits(a, p), "vegetation {what}");
+        }
+        assert!(
+            same_bits(
+                &alone.drainage_tile(z, x, y).unwrap(),
+                &painted.drainage_tile(z, x, y).unwrap()
+            ),
+            "drainage {what}"
+        );
+        let ((ma, ha), (mp, hp)) = (
+            alone.material_tile(z, x, y).unwrap(),
+            painted.material_tile(z, x, y).unwrap(),
+        );
+        assert!(same_bits(&ha, &hp), "hillshade {what}");
+        for (a, p) in ma.iter().zip(&mp) {
+            assert!(same_bits(a, p), "materials {what}");
+        }
+        let ((da, la), (dp, lp)) = (
+            alone.water_tile(z, x, y).unwrap(),
+            painted.water_tile(z, x, y).unwrap(),
+        );
+        assert!(same_bits(&da, &dp) && same_bits(&la, &lp), "water {what}");
+    }
+    // The comparison can fail: B alone amplifies differently.
+    let (x, y) = tile_of(70.5, 42.5, 10);
+    let b = world_alone(dict_b(), "b");
+    assert!(!same_bits(
+        &alone.elevation_tile(10, x, y).unwrap(),
+        &b.elevation_tile(10, x, y).unwrap()
+    ));
+}
+
+#[test]
+fn tiles_are_seamless_across_a_painted_boundary_and_carry_each_biome_away_from_it() {
+    let z = 10u8;
+    let (bx, by) = tile_of(boundary_lon(), 42.5, z);
+    let (x0, y0) = (bx - 1, by - 1);
+    let painted = painted_world();
+    let mosaic = |w: &World| {
+        mosaic_of(3, |dx, dy| {
+            w.elevation_tile(z, x0 + dx, y0 + dy)
+                .unwrap()
+                .as_ref()
+                .clone()
+        })
+    };
+    let m = mosaic(&painted);
+    let (border, inner) = border_and_interior_steps(&m);
+    eprintln!("z{z} across the painted boundary: border step {border:.4} vs interior {inner:.4}");
+    assert!(
+        border <= 1.25 * inner,
+        "z{z} across the painted boundary: border step {border} vs interior {inner}"
+    );
+    // West of the boundary the tiles are biome A's, east of it biome B's: away from the
+    // boundary (64 pixels, more than the reach of two levels' halos) bit for bit those of the
+    // worlds with A or B alone; between, a blend of both.
+    let boundary = pixel_col(boundary_lon(), z) - f64::from(x0 * 256);
+    let b_col = boundary.round() as usize;
+    let a = mosaic(&world_alone(dict_a(), "a"));
+    let b = mosaic(&world_alone(dict_b(), "b"));
+    let cols = m.ncols();
+    assert!(
+        b_col > 64 + 8 && b_col + 64 + 8 < cols,
+        "boundary at column {b_col}"
+    );
+    let west = s![.., ..b_col - 64];
+    let east = s![.., b_col + 64..];
+    assert!(same_bits(
+        &m.slice(west).to_owned(),
+        &a.slice(west).to_owned()
+    ));
+    assert!(same_bits(
+        &m.slice(east).to_owned(),
+        &b.slice(east).to_owned()
+    ));
+    assert!(!same_bits(
+        &m.slice(east).to_owned(),
+        &a.slice(east).to_owned()
+    ));
+    assert!(!same_bits(
+        &m.slice(west).to_owned(),
+        &b.slice(west).to_owned()
+    ));
+}
+
+#[test]
+fn a_biome_world_is_deterministic_and_window_invariant() {
+    let z = 11u8;
+    let (bx, by) = tile_of(boundary_lon(), 42.5, z);
+    // The tile holding the boundary, alone, in a fresh world (a cold chain of windows).
+    let alone = painted_world();
+    let tile = alone.elevation_tile(z, bx, by).unwrap();
+    let veg = alone.vegetation_tile(z, bx, by).unwrap();
+    // Determinism: a second world built from the same parts gives the same bits.
+    let again = painted_world();
+    assert!(same_bits(&tile, &again.elevation_tile(z, bx, by).unwrap()));
+    // Seamless: the tile is the window of the 2×2 block around it, computed in one call.
+    let block_world = painted_world();
+    let block = Window::new(i64::from(bx - 1) * 256, i64::from(by - 1) * 256, 512, 512);
+    let e = block_world.elevation_window(z, block).unwrap();
+    assert!(same_bits(&tile, &e.slice(s![256.., 256..]).to_owned()));
+    let v = block_world.vegetation_window(z, block).unwrap();
+    for (t, b) in veg.iter().zip(&v) {
+        assert!(same_bits(t, &b.slice(s![256.., 256..]).to_owned()));
+    }
+    // Window-invariant: odd windows across the boundary, each in a fresh world, equal the same
+    // pixels of the block.
+    for (dc, dr, cols, rows) in [
+        (300i64, 270i64, 97usize, 61usize),
+        (131, 411, 250, 40),
+        (0, 0, 33, 500),
+    ] {
+        let w = Window::new(block.col0 + dc, block.row0 + dr, cols, rows);
+        let got = painted_world().elevation_window(z, w).unwrap();
+        let want = e
+            .slice(s![
+                dr as usize..dr as usize + rows,
+                dc as usize..dc as usize + cols
+            ])
+            .to_owned();
+        assert!(same_bits(&got, &want), "window {w}");
+    }
+}
