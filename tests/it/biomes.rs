@@ -252,3 +252,128 @@ fn a_biome_world_is_deterministic_and_window_invariant() {
         assert!(same_bits(&got, &want), "window {w}");
     }
 }
+
+/// Writes the painted world's files into `dir` (base, two exemplars, two weight rasters, the
+/// world file `painted.toml` with `[[biomes]]`, and `server.toml`); returns the server file.
+fn write_painted_world_files(dir: &std::path::Path) -> std::path::PathBuf {
+    use terrasynth_core::raster::{write_geotiff_file, Georef};
+    let on_base = |a: Array2<f32>| Grid::new(a, mini_georef());
+    write_geotiff_file(&on_base(base()), &dir.join("base.tif")).unwrap();
+    let west = Array2::from_shape_fn((ROWS, COLS), |(_, c)| f32::from(u8::from(c < BOUNDARY_COL)));
+    write_geotiff_file(&on_base(west.clone()), &dir.join("ridges.tif")).unwrap();
+    write_geotiff_file(&on_base(west.mapv(|v| 1.0 - v)), &dir.join("steppe.tif")).unwrap();
+    let ridged = synthetic_terrain(128, 128, 2);
+    let low = synthetic_terrain(128, 128, 9).mapv(|v| 0.1 * v);
+    for (name, z) in [("ex_ridges.tif", ridged), ("ex_steppe.tif", low)] {
+        write_geotiff_file(&Grid::new(z, Georef::local_metric(100.0)), &dir.join(name)).unwrap();
+    }
+    let world = dir.join("painted.toml");
+    std::fs::write(
+        &world,
+        "name = \"painted\"\nbase = \"base.tif\"\nz_base = 8\nmax_zoom = 11\n\
+         [[biomes]]\nname = \"ridges\"\nweight = \"ridges.tif\"\n\
+         dictionary = { exemplars = [\"ex_ridges.tif\"], atoms = 32, patch = 16, stride = 8 }\n\
+         [[biomes]]\nname = \"steppe\"\nweight = \"steppe.tif\"\n\
+         [biomes.dictionary]\nexemplars = [\"ex_steppe.tif\"]\natoms = 32\npatch = 16\nstride = 8\n",
+    )
+    .unwrap();
+    let cfg = dir.join("server.toml");
+    std::fs::write(&cfg, format!("worlds = [{:?}]\n", world.to_str().unwrap())).unwrap();
+    cfg
+}
+
+#[test]
+fn a_biome_world_file_serves_the_same_bytes_from_two_processes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = write_painted_world_files(dir.path());
+    let (bx, by) = tile_of(boundary_lon(), 42.5, 10);
+    let mut urls = Vec::new();
+    for dx in 0..3 {
+        let x = bx + dx - 1;
+        urls.push(format!("/tiles/painted/elevation/10/{x}/{by}.png"));
+        urls.push(format!("/tiles/painted/vegetation/10/{x}/{by}.exr"));
+        urls.push(format!("/tiles/painted/drainage/10/{x}/{by}.exr"));
+        urls.push(format!("/tiles/painted/color/10/{x}/{by}.png"));
+    }
+    let (x11, y11) = tile_of(boundary_lon(), 42.5, 11);
+    urls.push(format!("/tiles/painted/elevation/11/{x11}/{y11}.png"));
+    let mut bodies: Vec<Vec<Vec<u8>>> = Vec::new();
+    for run in 0..2 {
+        let s = crate::support::start(
+            &["--config", cfg.to_str().unwrap()],
+            &[],
+            &dir.path().join(format!("store{run}")),
+        );
+        let (status, w) = terrasynth_test_support::process::get(&s, "/worlds/painted", None);
+        assert_eq!(status, 200);
+        assert_eq!(
+            terrasynth_test_support::process::json(&w)["dictionaries"]
+                .as_array()
+                .unwrap()
+                .len(),
+            2
+        );
+        let mut got = Vec::new();
+        for u in &urls {
+            let (status, body) = terrasynth_test_support::process::get(&s, u, None);
+            assert_eq!(status, 200, "{u}");
+            got.push(body);
+        }
+        s.kill();
+        bodies.push(got);
+    }
+    for (u, (a, b)) in urls.iter().zip(bodies[0].iter().zip(&bodies[1])) {
+        assert!(a == b, "{u} differs between processes");
+    }
+}
+
+#[test]
+fn a_world_file_with_a_bad_weight_raster_is_refused_naming_the_biome() {
+    use terrasynth_core::raster::write_geotiff_file;
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = write_painted_world_files(dir.path());
+    let load = || {
+        let config = terrasynth::config::load(Some(&cfg), Vec::new()).unwrap();
+        let store = terrasynth_store::Store::open(&dir.path().join("store")).unwrap();
+        terrasynth::server::load_worlds(&config, &store).map(|w| w.len())
+    };
+    assert_eq!(load().unwrap(), 1);
+    let steppe = dir.path().join("steppe.tif");
+    for (weights, needle) in
+        [
+            // Off the base's grid: a row short.
+            (
+                Grid::new(Array2::from_elem((ROWS - 1, COLS), 1.0), mini_georef()),
+                "biomes[1] (`steppe`): the weight raster is 288×239",
+            ),
+            // Negative and NaN weights.
+            (
+                Grid::new(Array2::from_elem((ROWS, COLS), -0.5), mini_georef()),
+                "biomes[1] (`steppe`): weight -0.5 at row 0, column 0",
+            ),
+            (
+                Grid::new(
+                    Array2::from_shape_fn((ROWS, COLS), |(r, c)| {
+                        if (r, c) == (3, 5) {
+                            f32::NAN
+                        } else {
+                            1.0
+                        }
+                    }),
+                    mini_georef(),
+                ),
+                "biomes[1] (`steppe`): weight NaN at row 3, column 5",
+            ),
+        ]
+    {
+        write_geotiff_file(&weights, &steppe).unwrap();
+        let e = load().unwrap_err().to_string();
+        assert!(e.contains("painted") && e.contains(needle), "{needle}: {e}");
+    }
+    // Weights 0 everywhere in both rasters.
+    let zeros = Grid::new(Array2::zeros((ROWS, COLS)), mini_georef());
+    write_geotiff_file(&zeros, &steppe).unwrap();
+    write_geotiff_file(&zeros, &dir.path().join("ridges.tif")).unwrap();
+    let e = load().unwrap_err().to_string();
+    assert!(e.contains("0 everywhere"), "{e}");
+}

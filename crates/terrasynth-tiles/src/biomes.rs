@@ -27,7 +27,8 @@
 //! serves tiles byte-identical to the world with A alone.
 //!
 //! **Checks** ([`BiomeWeights::of`]): at least one biome, weight rasters on the base's grid,
-//! weights finite and ≥ 0 (nodata cells weigh 0), not all zero, names unique.
+//! weights finite and ≥ 0 at every cell (a nodata cell is a NaN weight), not all zero, names
+//! unique.
 
 use std::sync::Arc;
 
@@ -106,9 +107,10 @@ impl BiomeWeights {
             }
             let mut values = r.data.clone();
             if let Some(valid) = &r.valid {
+                // Nodata cells (NaN in a GeoTIFF reads as nodata) are NaN weights.
                 Zip::from(&mut values).and(valid).for_each(|v, &ok| {
                     if !ok {
-                        *v = 0.0;
+                        *v = f32::NAN;
                     }
                 });
             }
