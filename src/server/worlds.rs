@@ -373,7 +373,16 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         classes: resolved
             .classes
             .map(|(config, raster)| WorldClasses { config, raster }),
-        biomes: Vec::new(),
+        biomes: resolved
+            .biomes
+            .into_iter()
+            .map(|b| WorldBiome {
+                name: b.name,
+                dictionary: b.dictionary,
+                id: b.id,
+                weight: b.weight,
+            })
+            .collect(),
         name: def.name,
     })
 }
