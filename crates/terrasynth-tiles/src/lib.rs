@@ -5,7 +5,7 @@
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], [`water`], the whole-world layers of the native zoom in
 //! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
-//! ([`world`]) with a dictionary per zoom band ([`chain`]), instances of plants and rocks as vector
+//! ([`world`]) with a dictionary per zoom band ([`chain`]) or painted biomes ([`biomes`]), instances of plants and rocks as vector
 //! tiles ([`instances`]), contour lines of the served elevation as vector tiles ([`contours`]),
 //! tile requests ([`request`]), renderers ([`render`]), encoders
 //! ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and point queries of the served
