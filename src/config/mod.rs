@@ -604,6 +604,15 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
         .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_dictionaries(&w, text, path)?;
     check_biomes(&w, text, path)?;
+    let biome_names: Vec<String> = w
+        .biomes
+        .iter()
+        .enumerate()
+        .map(|(i, b)| b.name(i))
+        .collect();
+    w.landscape
+        .check_biomes(&biome_names)
+        .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_amplifiers(&w, text, path)?;
     Ok(w)
 }
@@ -1062,6 +1071,12 @@ mod tests {
             ),
             ("[[biomes]]\nname = \"a\"\n", "weight"),
             ("[[biomes]]\nweight = \"a.tif\"\nlayer = \"x\"\n", "unknown field `layer`"),
+            (
+                "[[biomes]]\nname = \"alps\"\nweight = \"a.tif\"\n[landscape]\n\
+                 [[landscape.materials]]\nname = \"sand\"\ncolour = [0, 0, 0]\n\
+                 biome.desert = { min = 0.5, max = 1 }\n",
+                "material sand names unknown biome `desert` (its biomes are alps)",
+            ),
         ] {
             let e = parse_world(&format!("{head}{tables}"), "w.toml", Path::new("."))
                 .unwrap_err()

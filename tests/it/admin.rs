@@ -1915,6 +1915,22 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
     .await;
     assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
     assert!(problem_detail(st, &h, &body).contains("either `biomes` or `dictionaries`"));
+    // A material's `biome.<name>` term must name one of the world's biomes.
+    let sand = serde_json::json!([{"name": "sand", "colour": [200, 180, 120],
+        "biome": {"desert": {"min": 0.5, "max": 1.0}}}]);
+    let (st, h, body) = send(
+        &app,
+        create(
+            serde_json::json!({"name": "bad", "base": base, "biomes": halves, "materials": sand}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
+    let detail = problem_detail(st, &h, &body);
+    assert!(
+        detail.contains("material sand names unknown biome `desert` (its biomes are west, east)"),
+        "{detail}"
+    );
     assert_eq!(store_files(dir.path()), before);
     assert_eq!(
         send(&app, get("/worlds/bad")).await.0,

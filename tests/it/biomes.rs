@@ -377,3 +377,120 @@ fn a_world_file_with_a_bad_weight_raster_is_refused_naming_the_biome() {
     let e = load().unwrap_err().to_string();
     assert!(e.contains("0 everywhere"), "{e}");
 }
+
+#[test]
+fn materials_and_species_follow_biome_terms() {
+    use terrasynth_core::landscape::{LandscapeConfig, Trapezoid};
+    let inside = Trapezoid {
+        min: 0.5,
+        max: 1.0,
+        falloff: 0.0,
+    };
+    let mut landscape = LandscapeConfig::tienshan();
+    landscape.materials.truncate(2);
+    landscape.fallback_material = None;
+    for (m, biome) in landscape.materials.iter_mut().zip(["ridges", "steppe"]) {
+        *m = terrasynth_core::landscape::Material {
+            name: format!("{biome}_ground"),
+            ..m.clone()
+        };
+        m.elevation = None;
+        m.slope = None;
+        m.northness = None;
+        m.curvature = None;
+        m.wetness = None;
+        m.vegetation.clear();
+        m.class.clear();
+        m.spread = 0.0;
+        m.biome.insert(biome.into(), inside);
+    }
+    landscape.scatter.clear();
+    // The first species grows only where the steppe is painted.
+    landscape.species[0].biome.insert("steppe".into(), inside);
+    let biomes = || {
+        vec![
+            biome("ridges", dict_a(), "a", |_, c| {
+                f32::from(u8::from(c < BOUNDARY_COL))
+            }),
+            biome("steppe", dict_b(), "b", |_, c| {
+                f32::from(u8::from(c >= BOUNDARY_COL))
+            }),
+        ]
+    };
+    let world = terrasynth_test_support::mini_world_biomes_with(
+        base(),
+        biomes(),
+        landscape.clone(),
+        11,
+        64 << 20,
+    )
+    .unwrap();
+    // Without the species' term: the same species grows on both sides.
+    let mut free = landscape.clone();
+    free.species[0].biome.clear();
+    let free =
+        terrasynth_test_support::mini_world_biomes_with(base(), biomes(), free, 11, 64 << 20)
+            .unwrap();
+    for z in [8u8, 10] {
+        let (x, y) = tile_of(boundary_lon(), 42.5, z);
+        let b = (pixel_col(boundary_lon(), z) - f64::from(x * 256)).round() as usize;
+        // Beyond 8 pixels from the boundary (the bilinear ramp is one base cell wide, at most
+        // 3 pixels at zoom 10), one biome alone is painted.
+        let (west, east) = (..b.saturating_sub(8), b + 8..);
+        let (m, _) = world.material_tile(z, x, y).unwrap();
+        let (ridges, steppe) = (&m[0], &m[1]);
+        let coverage = world.coverage_tile(z, x, y).unwrap();
+        let mut checked = [0, 0];
+        for r in 0..256 {
+            for c in 0..256 {
+                // Outside the base every overlay is empty.
+                if coverage[[r, c]] < 1.0 {
+                    continue;
+                }
+                let want = if west.contains(&c) {
+                    checked[0] += 1;
+                    (1.0, 0.0)
+                } else if east.contains(&c) {
+                    checked[1] += 1;
+                    (0.0, 1.0)
+                } else {
+                    continue;
+                };
+                assert_eq!((ridges[[r, c]], steppe[[r, c]]), want, "z{z} ({r}, {c})");
+            }
+        }
+        assert!(checked[0] > 1000 && checked[1] > 1000, "z{z}: {checked:?}");
+        let spruce = &world.vegetation_tile(z, x, y).unwrap()[0];
+        let grows = &free.vegetation_tile(z, x, y).unwrap()[0];
+        let sum = |a: &Array2<f32>, cols: std::ops::Range<usize>| {
+            a.slice(s![.., cols])
+                .iter()
+                .map(|&v| f64::from(v))
+                .sum::<f64>()
+        };
+        let w = 0..b.saturating_sub(8);
+        assert_eq!(
+            sum(spruce, w.clone()),
+            0.0,
+            "z{z}: no species outside its biome"
+        );
+        assert!(
+            sum(grows, w) > 0.0,
+            "z{z}: the species grows there without the term"
+        );
+        assert!(
+            sum(spruce, b + 8..256) > 0.0,
+            "z{z}: the species grows in its biome"
+        );
+    }
+    // A term naming a biome the world lacks is refused by name.
+    let mut bad = landscape;
+    bad.materials[0].biome.insert("desert".into(), inside);
+    let e = terrasynth_test_support::mini_world_biomes_with(base(), biomes(), bad, 11, 64 << 20)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("names unknown biome `desert`") && e.contains("ridges, steppe"),
+        "{e}"
+    );
+}

@@ -621,6 +621,9 @@ impl WorldDefinition {
             .unwrap_or_default();
         l.check_classes(&class_names)
             .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+        let biome_names: Vec<String> = self.biomes.iter().map(|b| b.name().to_string()).collect();
+        l.check_biomes(&biome_names)
+            .map_err(|e| ServiceError::Invalid(e.to_string()))?;
         Ok(l)
     }
 

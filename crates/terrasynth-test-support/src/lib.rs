@@ -171,7 +171,24 @@ fn mini_world_parts(
     cache_bytes: u64,
 ) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
     let base = terrasynth_core::raster::Grid::new(heights, mini_georef());
-    terrasynth_tiles::World::new(terrasynth_tiles::WorldParts {
+    terrasynth_tiles::World::new(mini_parts(
+        base,
+        dictionaries,
+        biomes,
+        max_zoom,
+        cache_bytes,
+    ))
+}
+
+#[cfg(feature = "tiles")]
+fn mini_parts(
+    base: terrasynth_core::raster::Grid,
+    dictionaries: Vec<terrasynth_tiles::DictionaryBand>,
+    biomes: Vec<terrasynth_tiles::WorldBiome>,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> terrasynth_tiles::WorldParts {
+    terrasynth_tiles::WorldParts {
         name: "mini".into(),
         title: "Mini".into(),
         attribution: "synthetic".into(),
@@ -188,7 +205,7 @@ fn mini_world_parts(
         water: terrasynth_core::landscape::WaterConfig::default(),
         classes: None,
         biomes,
-    })
+    }
 }
 
 #[cfg(feature = "tiles")]
@@ -200,6 +217,22 @@ pub fn mini_world_biomes(
     cache_bytes: u64,
 ) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
     mini_world_parts(heights, Vec::new(), biomes, max_zoom, cache_bytes)
+}
+
+#[cfg(feature = "tiles")]
+/// [`mini_world_biomes`] with landscape `landscape` instead of the default world's.
+pub fn mini_world_biomes_with(
+    heights: Array2<f32>,
+    biomes: Vec<terrasynth_tiles::WorldBiome>,
+    landscape: terrasynth_core::landscape::LandscapeConfig,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
+    let base = terrasynth_core::raster::Grid::new(heights, mini_georef());
+    terrasynth_tiles::World::new(terrasynth_tiles::WorldParts {
+        landscape,
+        ..mini_parts(base, Vec::new(), biomes, max_zoom, cache_bytes)
+    })
 }
 
 #[cfg(feature = "tiles")]

@@ -138,7 +138,11 @@ fn compute(
     let wetness = analysis::log_upstream_area(&area64);
     let area = area64.mapv(|v| v as f32);
     drop(area64);
-    let class_weights = if landscape.species.iter().any(|s| !s.class.is_empty()) {
+    let class_weights = if landscape
+        .species
+        .iter()
+        .any(|s| !s.class.is_empty() || !s.biome.is_empty())
+    {
         classes.window(z, window)
     } else {
         Vec::new()

@@ -35,6 +35,7 @@ use std::sync::Arc;
 use ndarray::{Array2, Zip};
 
 use terrasynth_core::dictionary::AnyDictionary;
+use terrasynth_core::landscape::biome_key;
 use terrasynth_core::raster::reproject::to_geographic;
 use terrasynth_core::raster::{Crs, Grid};
 use terrasynth_core::synth::{Level, Window};
@@ -199,6 +200,21 @@ impl BiomeWeights {
             if n.iter().any(|&v| v > 0.0) {
                 out.push((i, n));
             }
+        }
+        out
+    }
+
+    /// Every biome's normalised weight over window `w` of zoom `z` (those of
+    /// [`BiomeWeights::window`], 0 for a biome not painted there), under `biome.<name>`
+    /// ([`terrasynth_core::landscape::biome_key`]), in biome order.
+    pub fn named_window(&self, z: u8, w: Window) -> Vec<(String, Array2<f32>)> {
+        let mut out: Vec<(String, Array2<f32>)> = self
+            .names
+            .iter()
+            .map(|n| (biome_key(n), Array2::zeros((w.rows, w.cols))))
+            .collect();
+        for (i, a) in self.window(z, w) {
+            out[i].1 = a;
         }
         out
     }

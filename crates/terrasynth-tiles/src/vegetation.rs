@@ -195,7 +195,10 @@ impl VegetationLevels {
         let viability = self.landscape.viability;
         let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
         let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
-        let class_weights = if species.iter().any(|s| !s.class.is_empty()) {
+        let class_weights = if species
+            .iter()
+            .any(|s| !s.class.is_empty() || !s.biome.is_empty())
+        {
             self.classes.window(z, w)
         } else {
             Vec::new()

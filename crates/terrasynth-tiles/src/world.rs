@@ -333,11 +333,13 @@ impl World {
         let layer_amplifiers = Chain::new(&parts.dictionaries, |b| {
             band_amplifier(b, &parts.weights, levers, Some(&species))
         })?;
+        // One copy of the weights, shared by the pyramids and the landscape's terms.
+        let shared_biomes = Arc::new(biome_weights.clone());
         let biomes = |species: Option<&[String]>| -> Result<_, TileError> {
             if biome_weights.is_empty() {
                 return Ok(None);
             }
-            let weights = Arc::new(biome_weights.clone());
+            let weights = shared_biomes.clone();
             let amplifiers = parts
                 .biomes
                 .iter()
@@ -357,6 +359,7 @@ impl World {
         };
         let elevation_biomes = biomes(None)?;
         let vegetation_biomes = biomes(Some(&species))?;
+        parts.landscape.check_biomes(biome_weights.names())?;
         let fingerprint = fingerprint(&parts, extent.z_base, &classes, &biome_weights);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
@@ -381,7 +384,12 @@ impl World {
             .unwrap_or_else(|| extent.middle());
         let etag_seeds = etag_seeds(&fingerprint, &scatter_fingerprint(&parts.landscape));
         let landscape = Arc::new(parts.landscape);
-        let classes = Arc::new(classes);
+        // Materials and species read the biome weights with the class weights.
+        let classes = Arc::new(if biome_weights.is_empty() {
+            classes
+        } else {
+            classes.with_biomes(shared_biomes)
+        });
         Ok(World {
             memory: MemoryPlan {
                 share: parts.cache_bytes,
