@@ -1830,6 +1830,12 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
     assert_eq!(st, StatusCode::CREATED, "{h}");
     let (_, info) = send_json(&app, get("/worlds/halves")).await;
     assert_eq!(info["dictionaries"], serde_json::json!([ridges, steppe]));
+    assert_eq!(
+        info["biomes"],
+        serde_json::json!([{"name": "west", "dictionary": ridges}, {"name": "east", "dictionary": steppe}])
+    );
+    let (_, info) = send_json(&app, get("/worlds/alone")).await;
+    assert!(info.get("biomes").is_none(), "{info}");
     // The middle of the base: 74° + 32 cells of 15″ east, 42.5° − 32 cells south.
     let (lon, lat) = (74.0 + 32.0 / 240.0, 42.5 - 32.0 / 240.0);
     let mut differs = false;
@@ -1851,6 +1857,37 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
         differs |= t_halves != t_alone;
     }
     assert!(differs, "the steppe half amplifies differently");
+    // Weights from another exemplar on the base's grid: that exemplar is then in use.
+    let weights_parts = [
+        ("elevation", tiff_of(n, n, |_, _| 1.0)),
+        ("north", tiff_of(n, n, |r, _| f32::from(u8::from(r < half)))),
+        (
+            "south",
+            tiff_of(n, n, |r, _| f32::from(u8::from(r >= half))),
+        ),
+    ];
+    let (st, wv) = send_json(&app, multipart("painted-weights", &weights_parts)).await;
+    assert_eq!(st, StatusCode::CREATED, "{wv}");
+    let weights_id = wv["id"].as_str().unwrap().to_string();
+    let borrowed = serde_json::json!([
+        {"dictionary": ridges, "weight": "north", "exemplar": weights_id},
+        {"dictionary": steppe, "weight": "south", "exemplar": weights_id}
+    ]);
+    let (st, v) = send_json(
+        &app,
+        create(serde_json::json!({"name": "borrowed", "base": base, "biomes": borrowed, "max_zoom": 12})),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    let del = req(
+        Method::DELETE,
+        &format!("/admin/exemplars/{weights_id}"),
+        None,
+        Vec::new(),
+    );
+    let (st, h, body) = send(&app, del).await;
+    assert_eq!(st, StatusCode::CONFLICT);
+    assert!(problem_detail(st, &h, &body).contains("holds biome weights of world `borrowed`"));
     // Both dictionaries and the weight exemplar are in use.
     for d in [&ridges, &steppe] {
         let del = req(
