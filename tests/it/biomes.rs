@@ -494,3 +494,74 @@ fn materials_and_species_follow_biome_terms() {
         "{e}"
     );
 }
+
+#[test]
+fn gradient_tile_sets_are_biomes_too() {
+    use terrasynth_core::dictionary::{build_gradient_tiles, GradientParams};
+    let set = Arc::new(
+        build_gradient_tiles(&[synthetic_terrain(96, 96, 4)], &GradientParams::default()).unwrap(),
+    );
+    let gradient_biome = |w: fn(usize, usize) -> f32| WorldBiome {
+        name: "gradient".into(),
+        dictionary: set.clone().into(),
+        id: "g".into(),
+        weight: Grid::new(
+            Array2::from_shape_fn((ROWS, COLS), |(r, c)| w(r, c)),
+            mini_georef(),
+        ),
+    };
+    let alone = terrasynth_test_support::mini_world_bands(
+        base(),
+        vec![terrasynth_tiles::DictionaryBand::every_zoom(
+            set.clone(),
+            "g",
+        )],
+        11,
+        64 << 20,
+    )
+    .unwrap();
+    let everywhere = mini_world_biomes(
+        base(),
+        vec![
+            biome("steppe", dict_b(), "b", |_, _| 0.0),
+            gradient_biome(|_, _| 1.0),
+        ],
+        11,
+        64 << 20,
+    )
+    .unwrap();
+    let z = 10u8;
+    let (x, y) = tile_of(boundary_lon(), 42.5, z);
+    assert!(same_bits(
+        &alone.elevation_tile(z, x, y).unwrap(),
+        &everywhere.elevation_tile(z, x, y).unwrap()
+    ));
+    for (a, b) in alone
+        .vegetation_tile(z, x, y)
+        .unwrap()
+        .iter()
+        .zip(everywhere.vegetation_tile(z, x, y).unwrap().iter())
+    {
+        assert!(same_bits(a, b));
+    }
+    // Gradient tiles west, dictionary east: a tile alone is the window of a block.
+    let painted = || {
+        mini_world_biomes(
+            base(),
+            vec![
+                gradient_biome(|_, c| f32::from(u8::from(c < BOUNDARY_COL))),
+                biome("steppe", dict_b(), "b", |_, c| {
+                    f32::from(u8::from(c >= BOUNDARY_COL))
+                }),
+            ],
+            11,
+            64 << 20,
+        )
+        .unwrap()
+    };
+    let tile = painted().elevation_tile(z, x, y).unwrap();
+    let block = Window::new(i64::from(x - 1) * 256, i64::from(y - 1) * 256, 512, 512);
+    let e = painted().elevation_window(z, block).unwrap();
+    assert!(same_bits(&tile, &e.slice(s![256.., 256..]).to_owned()));
+    assert!(!same_bits(&tile, &alone.elevation_tile(z, x, y).unwrap()));
+}
