@@ -7,6 +7,8 @@
 //! [`Level::parent_window_for`] names, assembled from cached parent tiles; since the amplifier
 //! is window-invariant, a tile computed alone equals the same window of any larger region. A tile
 //! of zoom `z < z_b` is the 2×2 box average of its four children, so zooming is consistent.
+//! In a biome world every biome painted over a tile amplifies the same parent window and the
+//! outputs are blended by the painted weights ([`crate::biomes`]).
 //!
 //! Amplified pixels outside the base's coverage are the fill, exactly. Cells under water keep
 //! their bed elevation; where the bed is exactly flat under water (a

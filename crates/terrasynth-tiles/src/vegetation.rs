@@ -8,7 +8,9 @@
 //!   dictionary lacks is carried by the smooth up-sampling of its parent). Then the niche model on
 //!   the served terrain moves the density of each parent pixel among its 2×2 children in
 //!   proportion to their suitability (the parent's density is kept), and the viability step fades
-//!   it on marginal ground and zeroes it where the niche excludes it.
+//!   it on marginal ground and zeroes it where the niche excludes it. In a biome world each
+//!   biome painted over the tile amplifies the densities with its own matches and they are
+//!   blended by the painted weights before the niche ([`crate::biomes`]).
 //! - **Coverage and water**: density is 0 outside the base's coverage ([`crate::coverage`]) and
 //!   under water ([`crate::water`]).
 //! - **Overviews** (`z < z_b`): the 2×2 box average of the children (densities average).
