@@ -324,6 +324,10 @@ pub struct WorldConfig {
     /// [`terrasynth_tiles::biomes`].
     #[serde(default)]
     pub biomes: Vec<BiomeFile>,
+    /// Painted controls of species densities (`[[controls]]`: `species`, `raster` on the base's
+    /// grid, `mode` `"replace"` or `"scale"`): see [`terrasynth_tiles::controls`].
+    #[serde(default)]
+    pub controls: Vec<ControlFile>,
     /// Matching weights.
     #[serde(default)]
     pub weights: MatchWeights,
@@ -374,6 +378,19 @@ pub struct BiomeFile {
     /// The dictionary's build settings (the keys of `[dictionary]`, without `zooms`).
     #[serde(default)]
     pub dictionary: DictionaryConfig,
+}
+
+/// One `[[controls]]` entry of a world file: a painted raster that replaces or scales a
+/// species' density.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ControlFile {
+    /// The species it steers (one of the world's).
+    pub species: String,
+    /// A GeoTIFF on the base's grid (path relative to the world file).
+    pub raster: String,
+    /// `replace` (values 0–1) or `scale` (values ≥ 0).
+    pub mode: terrasynth_tiles::ControlMode,
 }
 
 impl BiomeFile {
@@ -1082,6 +1099,42 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(needle) && e.contains("w.toml"), "{tables}: {e}");
+        }
+    }
+
+    #[test]
+    fn species_controls_parse_and_bad_modes_are_named() {
+        let head = "name = \"w\"\nbase = \"b.tif\"\n";
+        let w = parse_world(
+            &format!(
+                "{head}[[controls]]\nspecies = \"spruce\"\nraster = \"drawn.tif\"\nmode = \"scale\"\n"
+            ),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        assert_eq!(
+            w.controls,
+            vec![ControlFile {
+                species: "spruce".into(),
+                raster: "drawn.tif".into(),
+                mode: terrasynth_tiles::ControlMode::Scale,
+            }]
+        );
+        for (table, needle) in [
+            (
+                "[[controls]]\nspecies = \"spruce\"\nraster = \"d.tif\"\nmode = \"double\"\n",
+                "unknown variant `double`",
+            ),
+            (
+                "[[controls]]\nspecies = \"spruce\"\nraster = \"d.tif\"\n",
+                "mode",
+            ),
+        ] {
+            let e = parse_world(&format!("{head}{table}"), "w.toml", Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle) && e.contains("w.toml"), "{table}: {e}");
         }
     }
 

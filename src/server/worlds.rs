@@ -20,7 +20,9 @@ use terrasynth_core::dictionary::{
 use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
 use terrasynth_core::raster::{embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
-use terrasynth_tiles::{DictionaryBand, TileError, World, WorldBiome, WorldClasses, WorldParts};
+use terrasynth_tiles::{
+    DictionaryBand, SpeciesControl, TileError, World, WorldBiome, WorldClasses, WorldParts,
+};
 
 use super::error::StartupError;
 use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_CARRIZO, EMBEDDED_TIENSHAN};
@@ -292,6 +294,16 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
                 weight,
             });
         }
+        let mut controls = Vec::new();
+        for (i, c) in wc.controls.iter().enumerate() {
+            let raster = load_raster(&c.raster, &wc.dir)
+                .map_err(|e| world_error(wc)(format!("controls[{i}].raster: {e}")))?;
+            controls.push(SpeciesControl {
+                species: c.species.clone(),
+                mode: c.mode,
+                raster,
+            });
+        }
         // A biome world's dictionaries are its biomes'.
         let bands = if wc.biomes.is_empty() {
             wc.dictionary_bands()
@@ -330,6 +342,7 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
             },
             classes,
             biomes,
+            controls: Vec::new(),
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         if let Some(why) = share_shortfall(&world) {
@@ -383,6 +396,7 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
                 weight: b.weight,
             })
             .collect(),
+        controls: Vec::new(),
         name: def.name,
     })
 }

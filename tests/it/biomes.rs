@@ -2,7 +2,9 @@
 //! of the world with A alone (every layer, bit for bit); across a painted boundary tiles stay
 //! seamless (the seam measure of [`crate::server::border_and_interior_steps`]) and carry each
 //! biome's own detail away from it; a biome world is deterministic, a tile alone equals the
-//! window of a block, and any window equals the same part of a larger one.
+//! window of a block, and any window equals the same part of a larger one; materials and
+//! species follow `biome.<name>` terms; gradient tile sets are biomes too; painted species
+//! controls replace or scale a species' density.
 
 use std::sync::Arc;
 
@@ -564,4 +566,120 @@ fn gradient_tile_sets_are_biomes_too() {
     let e = painted().elevation_window(z, block).unwrap();
     assert!(same_bits(&tile, &e.slice(s![256.., 256..]).to_owned()));
     assert!(!same_bits(&tile, &alone.elevation_tile(z, x, y).unwrap()));
+}
+
+// --- painted control layers of species densities (#15) ---
+
+fn controlled_world(
+    controls: Vec<terrasynth_tiles::SpeciesControl>,
+) -> Result<World, terrasynth_tiles::TileError> {
+    let parts = terrasynth_test_support::mini_parts(
+        Grid::new(base(), mini_georef()),
+        vec![terrasynth_tiles::DictionaryBand::every_zoom(dict_a(), "a")],
+        Vec::new(),
+        11,
+        64 << 20,
+    );
+    World::new(terrasynth_tiles::WorldParts { controls, ..parts })
+}
+
+fn control(
+    species: &str,
+    mode: terrasynth_tiles::ControlMode,
+    v: f32,
+) -> terrasynth_tiles::SpeciesControl {
+    terrasynth_tiles::SpeciesControl {
+        species: species.into(),
+        mode,
+        raster: Grid::new(Array2::from_elem((ROWS, COLS), v), mini_georef()),
+    }
+}
+
+#[test]
+fn a_painted_control_replaces_or_scales_a_species_density() {
+    use terrasynth_tiles::ControlMode::{Replace, Scale};
+    let species = terrasynth_core::landscape::LandscapeConfig::tienshan().species[0]
+        .name
+        .clone();
+    let free = controlled_world(Vec::new()).unwrap();
+    let replaced = controlled_world(vec![control(&species, Replace, 0.3)]).unwrap();
+    let scaled = controlled_world(vec![control(&species, Scale, 0.5)]).unwrap();
+    // The native zoom: the control's value, or the free density times it, wherever the base
+    // covers the pixel (no water in this world).
+    let (x, y) = tile_of(70.5, 42.5, 8);
+    let coverage = free.coverage_tile(8, x, y).unwrap();
+    let (f, r, s) = (
+        free.vegetation_tile(8, x, y).unwrap()[0].clone(),
+        replaced.vegetation_tile(8, x, y).unwrap()[0].clone(),
+        scaled.vegetation_tile(8, x, y).unwrap()[0].clone(),
+    );
+    let mut covered = 0;
+    for ((p, &c), &fv) in coverage.indexed_iter().zip(f.iter()) {
+        if c < 1.0 {
+            continue;
+        }
+        covered += 1;
+        assert!((r[p] - 0.3).abs() < 1e-6, "{p:?}: {}", r[p]);
+        assert!((s[p] - 0.5 * fv).abs() < 1e-6, "{p:?}: {} vs {fv}", s[p]);
+    }
+    assert!(covered > 10_000, "{covered}");
+    assert!(f.iter().any(|&v| v > 0.0 && (v - 0.3).abs() > 0.05));
+    // Deeper zooms refine the controlled density: a zoom-10 tile's mean follows.
+    let (x, y) = tile_of(70.5, 42.5, 10);
+    let mean = |w: &World| {
+        let d = &w.vegetation_tile(10, x, y).unwrap()[0];
+        d.iter().map(|&v| f64::from(v)).sum::<f64>() / d.len() as f64
+    };
+    let (mf, mr, ms) = (mean(&free), mean(&replaced), mean(&scaled));
+    let (m0, m1) = (
+        mean(&controlled_world(vec![control(&species, Replace, 0.0)]).unwrap()),
+        mean(&controlled_world(vec![control(&species, Replace, 1.0)]).unwrap()),
+    );
+    eprintln!(
+        "zoom-10 mean density: free {mf:.4}, scaled by 0.5 {ms:.4}, replaced by 0 {m0:.4}, \
+         0.3 {mr:.4}, 1 {m1:.4}"
+    );
+    assert!(
+        mf > 0.0 && (0.35..0.65).contains(&(ms / mf)),
+        "{ms} vs {mf}"
+    );
+    // The niche fades the painted density on marginal ground, so the zoom-10 means are below
+    // the painted values, but they follow them.
+    assert!(
+        m0 < 0.25 * m1 && m0 < mr && mr < m1 && m1 <= 1.0,
+        "{m0} {mr} {m1}"
+    );
+    // Bad controls are refused by name.
+    for (c, needle) in [
+        (
+            vec![control("oak", Replace, 0.5)],
+            "controls[0]: unknown species `oak`",
+        ),
+        (
+            vec![control(&species, Replace, 1.5)],
+            "value 1.5 at row 0, column 0; values must be within 0–1",
+        ),
+        (
+            vec![control(&species, Scale, -1.0)],
+            "value -1 at row 0, column 0; values must be finite and ≥ 0",
+        ),
+        (
+            vec![
+                control(&species, Scale, 1.0),
+                control(&species, Replace, 0.5),
+            ],
+            "has a control already",
+        ),
+        (
+            vec![terrasynth_tiles::SpeciesControl {
+                species: species.clone(),
+                mode: Scale,
+                raster: Grid::new(Array2::from_elem((ROWS, COLS + 1), 1.0), mini_georef()),
+            }],
+            "must lie on the base's grid",
+        ),
+    ] {
+        let e = controlled_world(c).unwrap_err().to_string();
+        assert!(e.contains(needle), "{needle}: {e}");
+    }
 }

@@ -98,6 +98,7 @@ fn class_world_with(
         sparsity: None,
         water: Default::default(),
         biomes: Vec::new(),
+        controls: Vec::new(),
         classes: Some(WorldClasses {
             config: ClassesConfig {
                 legend,

@@ -88,6 +88,7 @@ fn lake_world() -> World {
         },
         classes: None,
         biomes: Vec::new(),
+        controls: Vec::new(),
     })
     .unwrap()
 }
@@ -324,6 +325,7 @@ fn coast_world() -> World {
         },
         classes: None,
         biomes: Vec::new(),
+        controls: Vec::new(),
     })
     .unwrap()
 }

@@ -181,7 +181,8 @@ fn mini_world_parts(
 }
 
 #[cfg(feature = "tiles")]
-fn mini_parts(
+/// The parts of [`mini_world_bands`] (and of a biome world), for tests that change a few.
+pub fn mini_parts(
     base: terrasynth_core::raster::Grid,
     dictionaries: Vec<terrasynth_tiles::DictionaryBand>,
     biomes: Vec<terrasynth_tiles::WorldBiome>,
@@ -205,6 +206,7 @@ fn mini_parts(
         water: terrasynth_core::landscape::WaterConfig::default(),
         classes: None,
         biomes,
+        controls: Vec::new(),
     }
 }
 

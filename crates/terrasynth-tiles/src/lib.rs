@@ -4,7 +4,7 @@
 //! grid onto a zoom's plane ([`resample`]), the one level pyramid every layer uses ([`pyramid`]:
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], [`water`], the whole-world layers of the native zoom in
-//! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
+//! [`base_layers`], steered by painted species controls, [`controls`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
 //! ([`world`]) with a dictionary per zoom band ([`chain`]) or painted biomes ([`biomes`]), instances of plants and rocks as vector
 //! tiles ([`instances`]), contour lines of the served elevation as vector tiles ([`contours`]),
 //! tile requests ([`request`]), renderers ([`render`]), encoders
@@ -22,6 +22,7 @@ pub mod cancel;
 pub mod chain;
 pub mod classes;
 pub mod contours;
+pub mod controls;
 pub mod coverage;
 pub mod drainage;
 pub mod elevation;
@@ -47,6 +48,7 @@ pub use biomes::{BiomeWeights, WorldBiome};
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use chain::{Chain, DictionaryBand};
 pub use classes::{ClassWeights, WorldClasses};
+pub use controls::{ControlMode, SpeciesControl, SpeciesControls};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
     encode_mapbox_png, encode_mapbox_webp, encode_rgba_png, encode_rgba_webp, encode_terrarium_png,

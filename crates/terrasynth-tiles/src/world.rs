@@ -28,6 +28,7 @@ use crate::base_layers::{base_layer_bytes, WholeWorld};
 use crate::biomes::{BiomeWeights, Biomes, WorldBiome};
 use crate::chain::{Chain, DictionaryBand};
 use crate::classes::{ClassWeights, WorldClasses};
+use crate::controls::{SpeciesControl, SpeciesControls};
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
@@ -79,6 +80,9 @@ pub struct WorldParts {
     /// the base's grid; empty: none. A biome world's `dictionaries` must be empty (the biomes
     /// amplify every zoom).
     pub biomes: Vec<WorldBiome>,
+    /// Painted controls replacing or scaling species densities ([`crate::controls`]); empty:
+    /// none.
+    pub controls: Vec<SpeciesControl>,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -222,6 +226,7 @@ fn fingerprint(
     z_base: u8,
     classes: &ClassWeights,
     biomes: &BiomeWeights,
+    controls: &SpeciesControls,
 ) -> String {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
@@ -264,6 +269,12 @@ fn fingerprint(
             h.update(format!("{}@{}|", b.name, b.id).as_bytes());
         }
         h.update(biomes.fingerprint_bytes());
+        h.update(b"|");
+    }
+    if !controls.is_empty() {
+        // Absent before controls: worlds without controls keep their fingerprint.
+        h.update(b"controls=");
+        h.update(controls.fingerprint_bytes());
         h.update(b"|");
     }
     for v in parts.base.data.iter() {
@@ -310,6 +321,8 @@ impl World {
             )];
             w
         };
+        // Controls, like classes, lie on the base's grid as given.
+        let controls = SpeciesControls::of(&parts.controls, &parts.landscape, &parts.base)?;
         if matches!(parts.base.georef.crs, Crs::Projected(_)) {
             parts.base =
                 to_geographic(&parts.base).map_err(|e| TileError::Raster(e.to_string()))?;
@@ -360,7 +373,7 @@ impl World {
         let elevation_biomes = biomes(None)?;
         let vegetation_biomes = biomes(Some(&species))?;
         parts.landscape.check_biomes(biome_weights.names())?;
-        let fingerprint = fingerprint(&parts, extent.z_base, &classes, &biome_weights);
+        let fingerprint = fingerprint(&parts, extent.z_base, &classes, &biome_weights, &controls);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
         let wet = parts.water.may_have_water();
@@ -370,7 +383,8 @@ impl World {
             wet,
         )
         .saturating_add(classes.bytes())
-        .saturating_add(biome_weights.bytes());
+        .saturating_add(biome_weights.bytes())
+        .saturating_add(controls.bytes());
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
@@ -423,7 +437,7 @@ impl World {
                 parts.water.clone(),
                 classes.clone(),
             ),
-            whole: WholeWorld::new(landscape.clone(), classes.clone()),
+            whole: WholeWorld::new(landscape.clone(), classes.clone(), controls),
             drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
             vegetation: VegetationLevels::new(
                 landscape.clone(),
