@@ -21,7 +21,8 @@ use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
 use terrasynth_core::raster::{embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
 use terrasynth_tiles::{
-    DictionaryBand, SpeciesControl, TileError, World, WorldBiome, WorldClasses, WorldParts,
+    ControlMode, DictionaryBand, SpeciesControl, TileError, World, WorldBiome, WorldClasses,
+    WorldParts,
 };
 
 use super::error::StartupError;
@@ -396,7 +397,19 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
                 weight: b.weight,
             })
             .collect(),
-        controls: Vec::new(),
+        controls: resolved
+            .controls
+            .into_iter()
+            .map(|(species, mode, raster)| SpeciesControl {
+                species,
+                mode: if mode == "scale" {
+                    ControlMode::Scale
+                } else {
+                    ControlMode::Replace
+                },
+                raster,
+            })
+            .collect(),
         name: def.name,
     })
 }

@@ -1887,7 +1887,8 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
     );
     let (st, h, body) = send(&app, del).await;
     assert_eq!(st, StatusCode::CONFLICT);
-    assert!(problem_detail(st, &h, &body).contains("holds biome weights of world `borrowed`"));
+    assert!(problem_detail(st, &h, &body)
+        .contains("holds biome weights or controls of world `borrowed`"));
     // Both dictionaries and the weight exemplar are in use.
     for d in [&ridges, &steppe] {
         let del = req(
@@ -1952,6 +1953,39 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
     .await;
     assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
     assert!(problem_detail(st, &h, &body).contains("either `biomes` or `dictionaries`"));
+    // Painted species controls: bad ones are 422 naming the problem (a good one is created
+    // below).
+    for (controls, needle) in [
+        (
+            serde_json::json!([{"species": "spruce", "layer": "west", "mode": "double"}]),
+            "controls[0].mode `double` must be `replace` or `scale`",
+        ),
+        (
+            serde_json::json!([{"species": "spruce", "layer": "alps", "mode": "scale"}]),
+            "controls[0].layer: exemplar",
+        ),
+        (
+            serde_json::json!([{"species": "oak", "layer": "west", "mode": "scale"}]),
+            "controls[0]: unknown species `oak`",
+        ),
+        (
+            serde_json::json!([{"species": "spruce", "layer": "neg", "mode": "scale"}]),
+            "controls[0] (`spruce`): value -2 at row 5, column 7",
+        ),
+        (
+            serde_json::json!([{"species": "spruce", "layer": "west", "mode": "scale", "exemplar": other}]),
+            "must lie on the base's grid",
+        ),
+    ] {
+        let (st, h, body) = send(
+            &app,
+            create(serde_json::json!({"name": "bad", "base": base, "dictionaries": [ridges], "controls": controls})),
+        )
+        .await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{needle}");
+        let detail = problem_detail(st, &h, &body);
+        assert!(detail.contains(needle), "{needle}: {detail}");
+    }
     // A material's `biome.<name>` term must name one of the world's biomes.
     let sand = serde_json::json!([{"name": "sand", "colour": [200, 180, 120],
         "biome": {"desert": {"min": 0.5, "max": 1.0}}}]);
@@ -1973,4 +2007,16 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
         send(&app, get("/worlds/bad")).await.0,
         StatusCode::NOT_FOUND
     );
+    // A good control is stored with the world and echoed back.
+    let controls = serde_json::json!([{"species": "spruce", "layer": "east", "mode": "replace"}]);
+    let (st, v) = send_json(
+        &app,
+        create(
+            serde_json::json!({"name": "drawn", "base": base, "dictionaries": [ridges],
+            "controls": controls, "max_zoom": 12}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    assert_eq!(v["world"]["controls"], controls);
 }

@@ -47,5 +47,6 @@ pub use service::{Catalogue, ResolvedBiome, ResolvedDictionary, ResolvedWorld};
 pub use sketch::SketchRequest;
 pub use store::{write_atomically, ObjectKind, Store, Stored, MAX_DICTIONARY_BYTES, STORE_VERSION};
 pub use worlds::{
-    DictionaryBandRef, WorldBiomeRef, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest,
+    DictionaryBandRef, WorldBiomeRef, WorldControlRef, WorldDefaults, WorldDefinition,
+    WorldDictionary, WorldRequest,
 };

@@ -65,6 +65,9 @@ pub struct ResolvedWorld {
     pub classes: Option<(ClassesConfig, Grid)>,
     /// The painted biomes (empty: not a biome world), in the definition's order.
     pub biomes: Vec<ResolvedBiome>,
+    /// The painted species controls: (species, mode, layer on its exemplar's grid), in the
+    /// definition's order.
+    pub controls: Vec<(String, String, Grid)>,
 }
 
 /// One painted biome of a resolved world.
@@ -309,9 +312,12 @@ impl Catalogue {
             d.biomes
                 .iter()
                 .any(|b| b.exemplar.as_deref().is_some_and(|e| e == id))
+                || d.controls
+                    .iter()
+                    .any(|c| c.exemplar.as_deref().is_some_and(|e| e == id))
         }) {
             return Err(ServiceError::Conflict(format!(
-                "exemplar `{id}` holds biome weights of world `{}`",
+                "exemplar `{id}` holds biome weights or controls of world `{}`",
                 def.name
             )));
         }
@@ -560,6 +566,17 @@ impl Catalogue {
                 weight: self.biome_weight(i, b, &def.base, &raster)?,
             });
         }
+        let mut controls = Vec::with_capacity(def.controls.len());
+        for (i, c) in def.controls.iter().enumerate() {
+            let raster = self.exemplar_layer(
+                &format!("controls[{i}]"),
+                c.exemplar.as_deref(),
+                &c.layer,
+                &def.base,
+                &raster,
+            )?;
+            controls.push((c.species.clone(), c.mode.clone(), raster));
+        }
         Ok(ResolvedWorld {
             definition: def.clone(),
             base,
@@ -567,12 +584,11 @@ impl Catalogue {
             landscape,
             classes,
             biomes,
+            controls,
         })
     }
 
-    /// The weight layer of biome `i` (`b.weight` of `b.exemplar`, default the base, decoded
-    /// as `base_raster`), which must lie on the base's grid. Cells hold the layer's values
-    /// (NaN where the upload had none: refused by the world's checks).
+    /// The weight layer of biome `i` (`b.weight` of `b.exemplar`, default the base).
     fn biome_weight(
         &self,
         i: usize,
@@ -580,13 +596,37 @@ impl Catalogue {
         base: &str,
         base_raster: &LayeredRaster,
     ) -> Result<Grid, ServiceError> {
-        let id = b.exemplar.as_deref().unwrap_or(base);
+        let what = format!("biomes[{i}]");
+        let weight =
+            self.exemplar_layer(&what, b.exemplar.as_deref(), &b.weight, base, base_raster);
+        // The layer is named by `weight` in a biome.
+        weight.map_err(|e| match e {
+            ServiceError::Invalid(m) => ServiceError::Invalid(
+                m.replace(&format!("{what}.layer"), &format!("{what}.weight")),
+            ),
+            e => e,
+        })
+    }
+
+    /// Layer `layer` of exemplar `exemplar` (default: the base, `base` decoded as
+    /// `base_raster`), which must lie on the base's grid; `what` names the request's entry in
+    /// errors. Cells hold the layer's values (NaN where the upload had none: refused by the
+    /// world's checks).
+    fn exemplar_layer(
+        &self,
+        what: &str,
+        exemplar: Option<&str>,
+        layer: &str,
+        base: &str,
+        base_raster: &LayeredRaster,
+    ) -> Result<Grid, ServiceError> {
+        let id = exemplar.unwrap_or(base);
         let other;
         let raster = if id == base {
             base_raster
         } else {
             let unknown =
-                || ServiceError::Invalid(format!("biomes[{i}].exemplar: unknown exemplar `{id}`"));
+                || ServiceError::Invalid(format!("{what}.exemplar: unknown exemplar `{id}`"));
             let payload = match self.store.get_object(ObjectKind::Exemplar, id) {
                 Ok(p) => p.ok_or_else(unknown)?,
                 Err(StoreError::BadName(_)) => return Err(unknown()),
@@ -596,18 +636,17 @@ impl Catalogue {
             if other.dim() != base_raster.dim() || other.georef != base_raster.georef {
                 let ((r, c), (br, bc)) = (other.dim(), base_raster.dim());
                 return Err(ServiceError::Invalid(format!(
-                    "biomes[{i}].exemplar `{id}` is {c}×{r} at {:?}: the weight raster must lie \
-                     on the base's grid, {bc}×{br} at {:?}",
+                    "{what}.exemplar `{id}` is {c}×{r} at {:?}: the raster must lie on the \
+                     base's grid, {bc}×{br} at {:?}",
                     other.georef, base_raster.georef
                 )));
             }
             &other
         };
-        let data = raster.layer(&b.weight).cloned().ok_or_else(|| {
+        let data = raster.layer(layer).cloned().ok_or_else(|| {
             ServiceError::Invalid(format!(
-                "biomes[{i}].weight: exemplar `{id}` has no layer `{}` (upload it as a `{}` \
-                 part)",
-                b.weight, b.weight
+                "{what}.layer: exemplar `{id}` has no layer `{layer}` (upload it as a `{layer}` \
+                 part)"
             ))
         })?;
         Ok(Grid::new(data, raster.georef))
@@ -736,6 +775,7 @@ impl Catalogue {
                 scatter: None,
                 classes: None,
                 biomes: Vec::new(),
+                controls: Vec::new(),
             },
             &self.defaults,
         )?;

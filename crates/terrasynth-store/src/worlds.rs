@@ -31,6 +31,9 @@ pub struct WorldDefinition {
     /// Painted biomes (instead of `dictionaries`): a dictionary and a weight layer each.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub biomes: Vec<WorldBiomeRef>,
+    /// Painted controls of species densities: a layer and a mode each.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub controls: Vec<WorldControlRef>,
     /// Deepest zoom served.
     pub max_zoom: u8,
     /// Matching weights by term or layer name.
@@ -150,6 +153,26 @@ impl WorldBiomeRef {
     }
 }
 
+/// A painted control of a species' density (#15): a layer of the base exemplar (or of another
+/// exemplar on its grid) that replaces or scales the species' density.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WorldControlRef {
+    /// The species it steers (one of the world's).
+    pub species: String,
+    /// The layer holding the painted values (uploaded as a named part).
+    pub layer: String,
+    /// `replace` (the density is the layer's value, 0–1) or `scale` (multiplied by it, ≥ 0).
+    #[schema(example = "replace")]
+    pub mode: String,
+    /// Exemplar holding the layer, on the base's grid; absent: the base exemplar.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exemplar: Option<String>,
+}
+
+/// The modes of [`WorldControlRef::mode`].
+pub const CONTROL_MODES: [&str; 2] = ["replace", "scale"];
+
 /// The exemplar layer of a class raster.
 pub const CLASSES_LAYER: &str = "classes";
 
@@ -192,6 +215,13 @@ pub struct WorldRequest {
     /// grid, negative or NaN, all 0; both `biomes` and `dictionaries`).
     #[serde(default)]
     pub biomes: Vec<WorldBiomeRef>,
+    /// Painted controls of species densities (default: none): `[{"species", "layer", "mode":
+    /// "replace" | "scale", "exemplar"}]` — the layer (of the base exemplar, uploaded as a named
+    /// part, or of `exemplar` on the base's grid) replaces the species' density (values 0–1) or
+    /// scales it (values ≥ 0) at the native zoom, and every zoom follows. Checked: 422 naming
+    /// the problem.
+    #[serde(default)]
+    pub controls: Vec<WorldControlRef>,
     /// Deepest zoom served (default: the default world's).
     #[serde(default)]
     pub max_zoom: Option<u8>,
@@ -408,6 +438,7 @@ impl WorldDefinition {
             base: r.base,
             dictionaries: r.dictionaries,
             biomes: r.biomes,
+            controls: r.controls,
             max_zoom: r.max_zoom.unwrap_or(d.max_zoom),
             weights: r.weights.unwrap_or_else(|| d.weights.clone()),
             materials: r.materials.unwrap_or_default(),
@@ -479,6 +510,26 @@ impl WorldDefinition {
         }
         def.landscape(&d.landscape)?;
         def.check_biomes()?;
+        for (i, c) in def.controls.iter().enumerate() {
+            if !CONTROL_MODES.contains(&c.mode.as_str()) {
+                return Err(ServiceError::Invalid(format!(
+                    "controls[{i}].mode `{}` must be `replace` or `scale`",
+                    c.mode
+                )));
+            }
+            if !is_valid_name(&c.layer) {
+                return Err(ServiceError::Invalid(format!(
+                    "controls[{i}].layer: unknown layer `{}`",
+                    c.layer
+                )));
+            }
+            if c.exemplar.as_ref().is_some_and(|e| !is_content_id(e)) {
+                return Err(ServiceError::Invalid(format!(
+                    "controls[{i}].exemplar: unknown exemplar `{}`",
+                    c.exemplar.as_deref().unwrap_or_default()
+                )));
+            }
+        }
         def.band_zooms()?;
         Ok(def)
     }
