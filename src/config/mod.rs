@@ -319,6 +319,15 @@ pub struct WorldConfig {
     /// `[dictionary]`: see [`terrasynth_core::synth::bands`] for the rule.
     #[serde(default)]
     pub dictionaries: Vec<DictionaryConfig>,
+    /// Painted biomes (`[[biomes]]`, each with a `weight` raster on the base's grid and its
+    /// `dictionary` build settings), instead of `[dictionary]`/`[[dictionaries]]`: see
+    /// [`terrasynth_tiles::biomes`].
+    #[serde(default)]
+    pub biomes: Vec<BiomeFile>,
+    /// Painted controls of species densities (`[[controls]]`: `species`, `raster` on the base's
+    /// grid, `mode` `"replace"` or `"scale"`): see [`terrasynth_tiles::controls`].
+    #[serde(default)]
+    pub controls: Vec<ControlFile>,
     /// Matching weights.
     #[serde(default)]
     pub weights: MatchWeights,
@@ -354,6 +363,41 @@ pub struct ClassesFile {
     /// Distance, metres, over which a class weight falls from 1 to 0 across a border.
     #[serde(default)]
     pub smoothing_m: f32,
+}
+
+/// One `[[biomes]]` entry of a world file: a dictionary and where it goes.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BiomeFile {
+    /// The biome's name (default `biome<i>`, `i` its position from 0).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The weight raster: a GeoTIFF on the base's grid (path relative to the world file),
+    /// weights finite and ≥ 0.
+    pub weight: String,
+    /// The dictionary's build settings (the keys of `[dictionary]`, without `zooms`).
+    #[serde(default)]
+    pub dictionary: DictionaryConfig,
+}
+
+/// One `[[controls]]` entry of a world file: a painted raster that replaces or scales a
+/// species' density.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ControlFile {
+    /// The species it steers (one of the world's).
+    pub species: String,
+    /// A GeoTIFF on the base's grid (path relative to the world file).
+    pub raster: String,
+    /// `replace` (values 0–1) or `scale` (values ≥ 0).
+    pub mode: terrasynth_tiles::ControlMode,
+}
+
+impl BiomeFile {
+    /// The biome's name, `biome<i>` when not given.
+    pub fn name(&self, i: usize) -> String {
+        self.name.clone().unwrap_or_else(|| format!("biome{i}"))
+    }
 }
 
 impl ClassesFile {
@@ -422,12 +466,64 @@ fn check_dictionaries(w: &WorldConfig, text: &str, path: &str) -> Result<(), Con
         .map_err(|e| invalid(format!("dictionaries: {e}")))
 }
 
+/// Checks the `[[biomes]]` of world file `path`: not with `[dictionary]` or `[[dictionaries]]`,
+/// valid unique names, no `zooms` (a biome amplifies every zoom).
+fn check_biomes(w: &WorldConfig, text: &str, path: &str) -> Result<(), ConfigError> {
+    if w.biomes.is_empty() {
+        return Ok(());
+    }
+    let invalid = |m: String| ConfigError::Invalid(format!("{path}: {m}"));
+    let has_single = text
+        .parse::<toml::Table>()
+        .is_ok_and(|t| t.contains_key("dictionary"));
+    if has_single || !w.dictionaries.is_empty() {
+        return Err(invalid(
+            "give either [[biomes]] or [dictionary]/[[dictionaries]], not both (each biome has \
+             its own dictionary)"
+                .into(),
+        ));
+    }
+    let mut names = Vec::new();
+    for (i, b) in w.biomes.iter().enumerate() {
+        let name = b.name(i);
+        if !terrasynth_core::names::is_valid_name(&name) {
+            return Err(invalid(format!(
+                "biomes[{i}].name `{name}` must be {}",
+                terrasynth_core::names::NAME_RULE
+            )));
+        }
+        if names.contains(&name) {
+            return Err(invalid(format!("biomes[{i}].name `{name}` is used twice")));
+        }
+        if b.dictionary.zooms.is_some() {
+            return Err(invalid(format!(
+                "biomes[{i}].dictionary.zooms: a biome's dictionary amplifies every zoom"
+            )));
+        }
+        names.push(name);
+    }
+    Ok(())
+}
+
 /// Checks that each dictionary table of world file `path` gives only the keys of its
 /// `amplifier` (a gradient band with `atoms`, or a dictionary band with `tile`, is a mismatch)
 /// and that a gradient band's parameters are valid.
 fn check_amplifiers(w: &WorldConfig, text: &str, path: &str) -> Result<(), ConfigError> {
     let table = text.parse::<toml::Table>().unwrap_or_default();
-    let raw: Vec<(String, Option<&toml::Table>, &DictionaryConfig)> = if w.dictionaries.is_empty() {
+    let raw: Vec<(String, Option<&toml::Table>, &DictionaryConfig)> = if !w.biomes.is_empty() {
+        let list = table.get("biomes").and_then(toml::Value::as_array);
+        w.biomes
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let t = list
+                    .and_then(|l| l.get(i))
+                    .and_then(|b| b.get("dictionary"))
+                    .and_then(toml::Value::as_table);
+                (format!("biomes[{i}].dictionary"), t, &b.dictionary)
+            })
+            .collect()
+    } else if w.dictionaries.is_empty() {
         vec![(
             "dictionary".to_string(),
             table.get("dictionary").and_then(toml::Value::as_table),
@@ -524,6 +620,16 @@ pub fn parse_world(text: &str, path: &str, dir: &Path) -> Result<WorldConfig, Co
         .check_classes(&class_names)
         .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_dictionaries(&w, text, path)?;
+    check_biomes(&w, text, path)?;
+    let biome_names: Vec<String> = w
+        .biomes
+        .iter()
+        .enumerate()
+        .map(|(i, b)| b.name(i))
+        .collect();
+    w.landscape
+        .check_biomes(&biome_names)
+        .map_err(|e| ConfigError::Invalid(format!("{path}: {e}")))?;
     check_amplifiers(&w, text, path)?;
     Ok(w)
 }
@@ -921,6 +1027,108 @@ mod tests {
             (
                 "[dictionary]\namplifier = \"poisson\"\n",
                 "unknown variant `poisson`",
+            ),
+        ] {
+            let e = parse_world(&format!("{head}{table}"), "w.toml", Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle) && e.contains("w.toml"), "{table}: {e}");
+        }
+    }
+
+    #[test]
+    fn biomes_parse_and_bad_biomes_are_named() {
+        let head = "name = \"w\"\nbase = \"b.tif\"\n";
+        let w = parse_world(
+            &format!(
+                "{head}[[biomes]]\nname = \"alps\"\nweight = \"alps.tif\"\n\
+                 dictionary = {{ atoms = 64 }}\n[[biomes]]\nweight = \"dry.tif\"\n\
+                 [biomes.dictionary]\nexemplars = [\"dry.tif\"]\n"
+            ),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        assert_eq!(w.biomes.len(), 2);
+        assert_eq!(
+            (w.biomes[0].name(0), w.biomes[1].name(1)),
+            ("alps".into(), "biome1".into())
+        );
+        assert_eq!(w.biomes[0].dictionary.atoms, 64);
+        assert_eq!(w.biomes[0].weight, "alps.tif");
+        assert_eq!(
+            w.biomes[1].dictionary.exemplars,
+            vec!["dry.tif".to_string()]
+        );
+        assert_eq!(
+            w.biomes[1].dictionary.atoms,
+            DictionaryConfig::default().atoms
+        );
+        for (tables, needle) in [
+            (
+                "[dictionary]\natoms = 8\n[[biomes]]\nweight = \"a.tif\"\n",
+                "either [[biomes]] or [dictionary]/[[dictionaries]]",
+            ),
+            (
+                "[[dictionaries]]\nzooms = \"9-12\"\n[[biomes]]\nweight = \"a.tif\"\n",
+                "either [[biomes]] or [dictionary]/[[dictionaries]]",
+            ),
+            (
+                "[[biomes]]\nname = \"a\"\nweight = \"a.tif\"\n[[biomes]]\nname = \"a\"\nweight = \"b.tif\"\n",
+                "biomes[1].name `a` is used twice",
+            ),
+            ("[[biomes]]\nname = \"a b\"\nweight = \"a.tif\"\n", "biomes[0].name `a b`"),
+            (
+                "[[biomes]]\nweight = \"a.tif\"\ndictionary = { zooms = \"9\" }\n",
+                "biomes[0].dictionary.zooms",
+            ),
+            (
+                "[[biomes]]\nweight = \"a.tif\"\ndictionary = { tile = 12 }\n",
+                "biomes[0].dictionary.tile does not apply",
+            ),
+            ("[[biomes]]\nname = \"a\"\n", "weight"),
+            ("[[biomes]]\nweight = \"a.tif\"\nlayer = \"x\"\n", "unknown field `layer`"),
+            (
+                "[[biomes]]\nname = \"alps\"\nweight = \"a.tif\"\n[landscape]\n\
+                 [[landscape.materials]]\nname = \"sand\"\ncolour = [0, 0, 0]\n\
+                 biome.desert = { min = 0.5, max = 1 }\n",
+                "material sand names unknown biome `desert` (its biomes are alps)",
+            ),
+        ] {
+            let e = parse_world(&format!("{head}{tables}"), "w.toml", Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle) && e.contains("w.toml"), "{tables}: {e}");
+        }
+    }
+
+    #[test]
+    fn species_controls_parse_and_bad_modes_are_named() {
+        let head = "name = \"w\"\nbase = \"b.tif\"\n";
+        let w = parse_world(
+            &format!(
+                "{head}[[controls]]\nspecies = \"spruce\"\nraster = \"drawn.tif\"\nmode = \"scale\"\n"
+            ),
+            "w.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        assert_eq!(
+            w.controls,
+            vec![ControlFile {
+                species: "spruce".into(),
+                raster: "drawn.tif".into(),
+                mode: terrasynth_tiles::ControlMode::Scale,
+            }]
+        );
+        for (table, needle) in [
+            (
+                "[[controls]]\nspecies = \"spruce\"\nraster = \"d.tif\"\nmode = \"double\"\n",
+                "unknown variant `double`",
+            ),
+            (
+                "[[controls]]\nspecies = \"spruce\"\nraster = \"d.tif\"\n",
+                "mode",
             ),
         ] {
             let e = parse_world(&format!("{head}{table}"), "w.toml", Path::new("."))

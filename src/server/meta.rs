@@ -46,6 +46,10 @@ pub struct WorldInfo {
     /// The synthesis chain's zoom bands: each dictionary with the zooms it was given (a world
     /// with one dictionary: every amplified zoom).
     pub dictionary_bands: Vec<DictionaryBandInfo>,
+    /// A biome world's painted biomes (#15), each with its dictionary, in the order given
+    /// (absent: not a biome world).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub biomes: Vec<BiomeInfo>,
     /// TileJSON URL of each layer.
     pub tilejson: Vec<String>,
 }
@@ -57,6 +61,15 @@ pub struct DictionaryBandInfo {
     pub id: String,
     /// Its zooms, `"FIRST-LAST"` or `"ZOOM"`.
     pub zooms: String,
+}
+
+/// A painted biome of a world.
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct BiomeInfo {
+    /// The biome's name (its `biome.<name>` terms).
+    pub name: String,
+    /// Content id of its dictionary.
+    pub dictionary: String,
 }
 
 fn bands(w: &World) -> Vec<DictionaryBandInfo> {
@@ -87,6 +100,15 @@ fn info(w: &World, base: &str) -> WorldInfo {
         layers: LAYERS.iter().map(|s| s.to_string()).collect(),
         dictionaries: w.dictionary_ids(),
         dictionary_bands: bands(w),
+        biomes: w
+            .biome_names()
+            .iter()
+            .zip(w.dictionary_ids())
+            .map(|(name, dictionary)| BiomeInfo {
+                name: name.clone(),
+                dictionary,
+            })
+            .collect(),
         tilejson: LAYERS
             .iter()
             .map(|l| format!("{base}/tiles/{}/{l}.json", w.name()))

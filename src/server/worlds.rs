@@ -20,7 +20,10 @@ use terrasynth_core::dictionary::{
 use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
 use terrasynth_core::raster::{embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
-use terrasynth_tiles::{DictionaryBand, TileError, World, WorldClasses, WorldParts};
+use terrasynth_tiles::{
+    ControlMode, DictionaryBand, SpeciesControl, TileError, World, WorldBiome, WorldClasses,
+    WorldParts,
+};
 
 use super::error::StartupError;
 use crate::config::{Config, DictionaryConfig, WorldConfig, EMBEDDED_CARRIZO, EMBEDDED_TIENSHAN};
@@ -278,7 +281,37 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
         let classes = load_classes(wc, &base).map_err(world_error(wc))?;
         tracing::info!(world = %wc.name, rows = base.rows(), cols = base.cols(), "world: base loaded");
         let mut dictionaries = Vec::new();
-        for (zooms, cfg) in wc.dictionary_bands() {
+        let mut biomes = Vec::new();
+        for (i, b) in wc.biomes.iter().enumerate() {
+            let name = b.name(i);
+            let weight = load_raster(&b.weight, &wc.dir)
+                .map_err(|e| world_error(wc)(format!("biomes[{i}].weight: {e}")))?;
+            let (dictionary, id) = world_dictionary(store, wc, &b.dictionary)?;
+            tracing::info!(world = %wc.name, biome = %name, id = %id, "world: biome ready");
+            biomes.push(WorldBiome {
+                name,
+                dictionary,
+                id,
+                weight,
+            });
+        }
+        let mut controls = Vec::new();
+        for (i, c) in wc.controls.iter().enumerate() {
+            let raster = load_raster(&c.raster, &wc.dir)
+                .map_err(|e| world_error(wc)(format!("controls[{i}].raster: {e}")))?;
+            controls.push(SpeciesControl {
+                species: c.species.clone(),
+                mode: c.mode,
+                raster,
+            });
+        }
+        // A biome world's dictionaries are its biomes'.
+        let bands = if wc.biomes.is_empty() {
+            wc.dictionary_bands()
+        } else {
+            Vec::new()
+        };
+        for (zooms, cfg) in bands {
             let (dictionary, id) = world_dictionary(store, wc, cfg)?;
             dictionaries.push(DictionaryBand {
                 zooms,
@@ -309,6 +342,8 @@ pub fn load_worlds(config: &Config, store: &Store) -> Result<Worlds, StartupErro
                 ..wc.water.clone()
             },
             classes,
+            biomes,
+            controls: Vec::new(),
         })
         .map_err(|e| world_error(wc)(e.to_string()))?;
         if let Some(why) = share_shortfall(&world) {
@@ -352,6 +387,29 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
         classes: resolved
             .classes
             .map(|(config, raster)| WorldClasses { config, raster }),
+        biomes: resolved
+            .biomes
+            .into_iter()
+            .map(|b| WorldBiome {
+                name: b.name,
+                dictionary: b.dictionary,
+                id: b.id,
+                weight: b.weight,
+            })
+            .collect(),
+        controls: resolved
+            .controls
+            .into_iter()
+            .map(|(species, mode, raster)| SpeciesControl {
+                species,
+                mode: if mode == "scale" {
+                    ControlMode::Scale
+                } else {
+                    ControlMode::Replace
+                },
+                raster,
+            })
+            .collect(),
         name: def.name,
     })
 }

@@ -1752,3 +1752,271 @@ async fn api_worlds_take_a_dictionary_per_zoom_band() {
         );
     }
 }
+
+/// A GeoTIFF of `f(row, col)` on [`terrasynth_test_support::georef_15s`].
+fn tiff_of(rows: usize, cols: usize, f: impl Fn(usize, usize) -> f32) -> Vec<u8> {
+    let grid = Grid::new(
+        ndarray::Array2::from_shape_fn((rows, cols), |(r, c)| f(r, c)),
+        terrasynth_test_support::georef_15s(),
+    );
+    let mut out = std::io::Cursor::new(Vec::new());
+    terrasynth_core::raster::write_geotiff(&grid, &mut out).unwrap();
+    out.into_inner()
+}
+
+#[tokio::test]
+async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = router(dir.path());
+    let ridges = build_small_dictionary(&app, "ridges", 7).await;
+    let steppe = build_small_dictionary(&app, "steppe", 11).await;
+    // The base with its weight layers as named parts (#15): west/east halves, 1 and 0
+    // everywhere, a negative and a NaN cell.
+    let (n, half) = (64usize, 32usize);
+    let elevation = tiff_of(n, n, |r, c| {
+        (900.0 + 400.0 * ((r as f64 * 0.2).sin() * (c as f64 * 0.17).cos())) as f32
+    });
+    let parts = [
+        ("elevation", elevation),
+        ("west", tiff_of(n, n, |_, c| f32::from(u8::from(c < half)))),
+        ("east", tiff_of(n, n, |_, c| f32::from(u8::from(c >= half)))),
+        ("ones", tiff_of(n, n, |_, _| 1.0)),
+        ("zeros", tiff_of(n, n, |_, _| 0.0)),
+        (
+            "neg",
+            tiff_of(n, n, |r, c| if (r, c) == (5, 7) { -2.0 } else { 1.0 }),
+        ),
+        (
+            "nan",
+            tiff_of(n, n, |r, c| if (r, c) == (6, 8) { f32::NAN } else { 1.0 }),
+        ),
+    ];
+    let (st, b) = send_json(&app, multipart("painted-base", &parts)).await;
+    assert_eq!(st, StatusCode::CREATED, "{b}");
+    let base = b["id"].as_str().unwrap().to_string();
+    let other = upload_tiff(&app, "other-grid", n + 1, n, 4).await;
+    let create = |body: serde_json::Value| json(Method::POST, "/admin/worlds", body);
+    let (st, alone) = send_json(
+        &app,
+        create(serde_json::json!({"name": "alone", "base": base, "dictionaries": [ridges], "max_zoom": 12})),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{alone}");
+    let z = alone["native_zoom"].as_u64().unwrap() as u8;
+    // Ridges painted everywhere (steppe listed first, weight 0): the tiles of `alone`.
+    let everywhere = serde_json::json!([
+        {"dictionary": steppe, "weight": "zeros"},
+        {"dictionary": ridges, "weight": "ones", "name": "alps"}
+    ]);
+    let (st, a) = send_json(
+        &app,
+        create(serde_json::json!({"name": "everywhere", "base": base, "biomes": everywhere, "max_zoom": 12})),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{a}");
+    assert_eq!(a["world"]["biomes"], everywhere);
+    // Ridges west, steppe east.
+    let halves = serde_json::json!([
+        {"dictionary": ridges, "weight": "west"},
+        {"dictionary": steppe, "weight": "east"}
+    ]);
+    let (st, h) = send_json(
+        &app,
+        create(
+            serde_json::json!({"name": "halves", "base": base, "biomes": halves, "max_zoom": 12}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{h}");
+    let (_, info) = send_json(&app, get("/worlds/halves")).await;
+    assert_eq!(info["dictionaries"], serde_json::json!([ridges, steppe]));
+    assert_eq!(
+        info["biomes"],
+        serde_json::json!([{"name": "west", "dictionary": ridges}, {"name": "east", "dictionary": steppe}])
+    );
+    let (_, info) = send_json(&app, get("/worlds/alone")).await;
+    assert!(info.get("biomes").is_none(), "{info}");
+    // The middle of the base: 74° + 32 cells of 15″ east, 42.5° − 32 cells south.
+    let (lon, lat) = (74.0 + 32.0 / 240.0, 42.5 - 32.0 / 240.0);
+    let mut differs = false;
+    for zz in [z + 1, z + 2, z + 3] {
+        let (x, y) = tile_of(lon, lat, zz);
+        let uri = |w: &str| format!("/tiles/{w}/elevation/{zz}/{x}/{y}.png");
+        let (s1, _, t_alone) = send(&app, get(&uri("alone"))).await;
+        let (s2, _, t_every) = send(&app, get(&uri("everywhere"))).await;
+        let (s3, _, t_halves) = send(&app, get(&uri("halves"))).await;
+        assert_eq!(
+            (s1, s2, s3),
+            (StatusCode::OK, StatusCode::OK, StatusCode::OK),
+            "z{zz}"
+        );
+        assert_eq!(
+            t_alone, t_every,
+            "z{zz}: a biome painted everywhere is its world alone"
+        );
+        differs |= t_halves != t_alone;
+    }
+    assert!(differs, "the steppe half amplifies differently");
+    // Weights from another exemplar on the base's grid: that exemplar is then in use.
+    let weights_parts = [
+        ("elevation", tiff_of(n, n, |_, _| 1.0)),
+        ("north", tiff_of(n, n, |r, _| f32::from(u8::from(r < half)))),
+        (
+            "south",
+            tiff_of(n, n, |r, _| f32::from(u8::from(r >= half))),
+        ),
+    ];
+    let (st, wv) = send_json(&app, multipart("painted-weights", &weights_parts)).await;
+    assert_eq!(st, StatusCode::CREATED, "{wv}");
+    let weights_id = wv["id"].as_str().unwrap().to_string();
+    let borrowed = serde_json::json!([
+        {"dictionary": ridges, "weight": "north", "exemplar": weights_id},
+        {"dictionary": steppe, "weight": "south", "exemplar": weights_id}
+    ]);
+    let (st, v) = send_json(
+        &app,
+        create(serde_json::json!({"name": "borrowed", "base": base, "biomes": borrowed, "max_zoom": 12})),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    let del = req(
+        Method::DELETE,
+        &format!("/admin/exemplars/{weights_id}"),
+        None,
+        Vec::new(),
+    );
+    let (st, h, body) = send(&app, del).await;
+    assert_eq!(st, StatusCode::CONFLICT);
+    assert!(problem_detail(st, &h, &body)
+        .contains("holds biome weights or controls of world `borrowed`"));
+    // Both dictionaries and the weight exemplar are in use.
+    for d in [&ridges, &steppe] {
+        let del = req(
+            Method::DELETE,
+            &format!("/admin/dictionaries/{d}"),
+            None,
+            Vec::new(),
+        );
+        assert_eq!(send(&app, del).await.0, StatusCode::CONFLICT);
+    }
+    // Bad biomes: 422 problem+json naming the problem, nothing stored.
+    let before = store_files(dir.path());
+    let unknown_id = "0".repeat(64);
+    let cases = [
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "zeros"}, {"dictionary": steppe, "weight": "zeros", "name": "dry"}]),
+            "0 everywhere",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "alps"}]),
+            "biomes[0].weight: exemplar",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "west"}, {"dictionary": unknown_id, "weight": "east"}]),
+            "biomes[1]: unknown dictionary",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "neg"}]),
+            "weight -2 at row 5, column 7",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "nan"}]),
+            "weight NaN at row 6, column 8",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "west", "exemplar": other}]),
+            "must lie on the base's grid",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "west"}, {"dictionary": steppe, "weight": "west"}]),
+            "biomes[1].name `west` is used twice",
+        ),
+        (
+            serde_json::json!([{"dictionary": ridges, "weight": "west", "layer": "x"}]),
+            "unknown field `layer`",
+        ),
+    ];
+    for (biomes, needle) in cases {
+        let (st, h, body) = send(
+            &app,
+            create(serde_json::json!({"name": "bad", "base": base, "biomes": biomes})),
+        )
+        .await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{needle}");
+        let detail = problem_detail(st, &h, &body);
+        assert!(detail.contains(needle), "{needle}: {detail}");
+    }
+    let (st, h, body) = send(
+        &app,
+        create(serde_json::json!({"name": "bad", "base": base, "biomes": halves, "dictionaries": [ridges]})),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
+    assert!(problem_detail(st, &h, &body).contains("either `biomes` or `dictionaries`"));
+    // Painted species controls: bad ones are 422 naming the problem (a good one is created
+    // below).
+    for (controls, needle) in [
+        (
+            serde_json::json!([{"species": "spruce", "layer": "west", "mode": "double"}]),
+            "controls[0].mode `double` must be `replace` or `scale`",
+        ),
+        (
+            serde_json::json!([{"species": "spruce", "layer": "alps", "mode": "scale"}]),
+            "controls[0].layer: exemplar",
+        ),
+        (
+            serde_json::json!([{"species": "oak", "layer": "west", "mode": "scale"}]),
+            "controls[0]: unknown species `oak`",
+        ),
+        (
+            serde_json::json!([{"species": "spruce", "layer": "neg", "mode": "scale"}]),
+            "controls[0] (`spruce`): value -2 at row 5, column 7",
+        ),
+        (
+            serde_json::json!([{"species": "spruce", "layer": "west", "mode": "scale", "exemplar": other}]),
+            "must lie on the base's grid",
+        ),
+    ] {
+        let (st, h, body) = send(
+            &app,
+            create(serde_json::json!({"name": "bad", "base": base, "dictionaries": [ridges], "controls": controls})),
+        )
+        .await;
+        assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{needle}");
+        let detail = problem_detail(st, &h, &body);
+        assert!(detail.contains(needle), "{needle}: {detail}");
+    }
+    // A material's `biome.<name>` term must name one of the world's biomes.
+    let sand = serde_json::json!([{"name": "sand", "colour": [200, 180, 120],
+        "biome": {"desert": {"min": 0.5, "max": 1.0}}}]);
+    let (st, h, body) = send(
+        &app,
+        create(
+            serde_json::json!({"name": "bad", "base": base, "biomes": halves, "materials": sand}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
+    let detail = problem_detail(st, &h, &body);
+    assert!(
+        detail.contains("material sand names unknown biome `desert` (its biomes are west, east)"),
+        "{detail}"
+    );
+    assert_eq!(store_files(dir.path()), before);
+    assert_eq!(
+        send(&app, get("/worlds/bad")).await.0,
+        StatusCode::NOT_FOUND
+    );
+    // A good control is stored with the world and echoed back.
+    let controls = serde_json::json!([{"species": "spruce", "layer": "east", "mode": "replace"}]);
+    let (st, v) = send_json(
+        &app,
+        create(
+            serde_json::json!({"name": "drawn", "base": base, "dictionaries": [ridges],
+            "controls": controls, "max_zoom": 12}),
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::CREATED, "{v}");
+    assert_eq!(v["world"]["controls"], controls);
+}

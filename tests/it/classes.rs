@@ -97,6 +97,8 @@ fn class_world_with(
         center: None,
         sparsity: None,
         water: Default::default(),
+        biomes: Vec::new(),
+        controls: Vec::new(),
         classes: Some(WorldClasses {
             config: ClassesConfig {
                 legend,

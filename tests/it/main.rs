@@ -20,6 +20,9 @@
 //! - [`coverage`]: overlays are transparent exactly outside a small base and in its hole (#15);
 //! - [`classes`]: land-cover classes (#15): splat weights following a class raster by pixel,
 //!   bad control rasters refused with 422 on the real binary;
+//! - [`biomes`]: painted biomes (#15): a biome painted everywhere serves its world's tiles bit
+//!   for bit, seams across a painted boundary, determinism and window invariance, `biome.<name>`
+//!   terms, painted species controls;
 //! - [`water`]: sea and lakes (#15): flat lake surfaces and beds, drainage ending at the shore,
 //!   seamless and deterministic water tiles;
 //! - [`webp`]: lossless WebP tiles carry the PNG tiles' pixels;
@@ -34,6 +37,7 @@
 
 mod admin;
 mod admin_e2e;
+mod biomes;
 mod classes;
 mod cli;
 mod contours;

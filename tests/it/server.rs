@@ -862,6 +862,8 @@ fn a_world_on_a_utm_base_lies_where_the_data_lies() {
         sparsity: None,
         water: Default::default(),
         classes: None,
+        biomes: Vec::new(),
+        controls: Vec::new(),
     })
     .unwrap();
     let [w, s, e, n] = world.bounds();

@@ -87,6 +87,8 @@ fn lake_world() -> World {
             ..Default::default()
         },
         classes: None,
+        biomes: Vec::new(),
+        controls: Vec::new(),
     })
     .unwrap()
 }
@@ -322,6 +324,8 @@ fn coast_world() -> World {
             ..Default::default()
         },
         classes: None,
+        biomes: Vec::new(),
+        controls: Vec::new(),
     })
     .unwrap()
 }

@@ -43,9 +43,10 @@ pub use budget::{MemoryBudget, Reservation};
 pub use catalog::{Catalog, DictionaryInfo, ExemplarInfo, Statistics};
 pub use error::{ServiceError, StoreError};
 pub use jobs::{DictionaryRequest, Job, JobRequest, JobSettings, JobState};
-pub use service::{Catalogue, ResolvedDictionary, ResolvedWorld};
+pub use service::{Catalogue, ResolvedBiome, ResolvedDictionary, ResolvedWorld};
 pub use sketch::SketchRequest;
 pub use store::{write_atomically, ObjectKind, Store, Stored, MAX_DICTIONARY_BYTES, STORE_VERSION};
 pub use worlds::{
-    DictionaryBandRef, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest,
+    DictionaryBandRef, WorldBiomeRef, WorldControlRef, WorldDefaults, WorldDefinition,
+    WorldDictionary, WorldRequest,
 };

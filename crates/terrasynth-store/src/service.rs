@@ -33,7 +33,8 @@ use crate::jobs::{
 use crate::sketch::SketchRequest;
 use crate::store::{ObjectKind, Store, Stored};
 use crate::worlds::{
-    check_name, WorldClassesRef, WorldDefaults, WorldDefinition, WorldDictionary, WorldRequest,
+    check_name, WorldBiomeRef, WorldClassesRef, WorldDefaults, WorldDefinition, WorldDictionary,
+    WorldRequest,
 };
 
 /// Most exemplars one build may read.
@@ -62,6 +63,24 @@ pub struct ResolvedWorld {
     /// The land-cover classes' settings and raster (on the base's grid), when the world has
     /// classes.
     pub classes: Option<(ClassesConfig, Grid)>,
+    /// The painted biomes (empty: not a biome world), in the definition's order.
+    pub biomes: Vec<ResolvedBiome>,
+    /// The painted species controls: (species, mode, layer on its exemplar's grid), in the
+    /// definition's order.
+    pub controls: Vec<(String, String, Grid)>,
+}
+
+/// One painted biome of a resolved world.
+#[derive(Clone, Debug)]
+pub struct ResolvedBiome {
+    /// Its name.
+    pub name: String,
+    /// Its dictionary (or gradient tile set).
+    pub dictionary: AnyDictionary,
+    /// The dictionary's content id.
+    pub id: String,
+    /// The weight layer, on its exemplar's grid (checked against the base's by the world).
+    pub weight: Grid,
 }
 
 /// One dictionary of a resolved world's chain.
@@ -289,6 +308,19 @@ impl Catalogue {
                 def.name
             )));
         }
+        if let Some((_, def)) = self.stored_worlds()?.into_iter().find(|(_, d)| {
+            d.biomes
+                .iter()
+                .any(|b| b.exemplar.as_deref().is_some_and(|e| e == id))
+                || d.controls
+                    .iter()
+                    .any(|c| c.exemplar.as_deref().is_some_and(|e| e == id))
+        }) {
+            return Err(ServiceError::Conflict(format!(
+                "exemplar `{id}` holds biome weights or controls of world `{}`",
+                def.name
+            )));
+        }
         self.catalog.remove_exemplar(id);
         let alias = format!("exemplar.{}", header.name);
         if self.store.alias(&alias)?.as_deref() == Some(id) {
@@ -396,7 +428,10 @@ impl Catalogue {
             None => self
                 .stored_worlds()?
                 .into_iter()
-                .find(|(_, d)| d.dictionaries.iter().any(|x| x.id() == id))
+                .find(|(_, d)| {
+                    d.dictionaries.iter().any(|x| x.id() == id)
+                        || d.biomes.iter().any(|b| b.dictionary == id)
+                })
                 .map(|(_, d)| d.name),
         };
         if let Some(w) = user {
@@ -513,13 +548,108 @@ impl Catalogue {
                 id: id.to_string(),
             });
         }
+        let mut biomes = Vec::with_capacity(def.biomes.len());
+        for (i, b) in def.biomes.iter().enumerate() {
+            let id = &b.dictionary;
+            let dictionary = self
+                .store
+                .get_any_dictionary(id)?
+                .ok_or_else(|| {
+                    ServiceError::Invalid(format!("biomes[{i}]: unknown dictionary `{id}`"))
+                })?
+                .expect(b.amplifier, &format!("biomes[{i}] `{id}`"))
+                .map_err(ServiceError::Invalid)?;
+            biomes.push(ResolvedBiome {
+                name: b.name().to_string(),
+                dictionary,
+                id: id.clone(),
+                weight: self.biome_weight(i, b, &def.base, &raster)?,
+            });
+        }
+        let mut controls = Vec::with_capacity(def.controls.len());
+        for (i, c) in def.controls.iter().enumerate() {
+            let raster = self.exemplar_layer(
+                &format!("controls[{i}]"),
+                c.exemplar.as_deref(),
+                &c.layer,
+                &def.base,
+                &raster,
+            )?;
+            controls.push((c.species.clone(), c.mode.clone(), raster));
+        }
         Ok(ResolvedWorld {
             definition: def.clone(),
             base,
             dictionaries,
             landscape,
             classes,
+            biomes,
+            controls,
         })
+    }
+
+    /// The weight layer of biome `i` (`b.weight` of `b.exemplar`, default the base).
+    fn biome_weight(
+        &self,
+        i: usize,
+        b: &WorldBiomeRef,
+        base: &str,
+        base_raster: &LayeredRaster,
+    ) -> Result<Grid, ServiceError> {
+        let what = format!("biomes[{i}]");
+        let weight =
+            self.exemplar_layer(&what, b.exemplar.as_deref(), &b.weight, base, base_raster);
+        // The layer is named by `weight` in a biome.
+        weight.map_err(|e| match e {
+            ServiceError::Invalid(m) => ServiceError::Invalid(
+                m.replace(&format!("{what}.layer"), &format!("{what}.weight")),
+            ),
+            e => e,
+        })
+    }
+
+    /// Layer `layer` of exemplar `exemplar` (default: the base, `base` decoded as
+    /// `base_raster`), which must lie on the base's grid; `what` names the request's entry in
+    /// errors. Cells hold the layer's values (NaN where the upload had none: refused by the
+    /// world's checks).
+    fn exemplar_layer(
+        &self,
+        what: &str,
+        exemplar: Option<&str>,
+        layer: &str,
+        base: &str,
+        base_raster: &LayeredRaster,
+    ) -> Result<Grid, ServiceError> {
+        let id = exemplar.unwrap_or(base);
+        let other;
+        let raster = if id == base {
+            base_raster
+        } else {
+            let unknown =
+                || ServiceError::Invalid(format!("{what}.exemplar: unknown exemplar `{id}`"));
+            let payload = match self.store.get_object(ObjectKind::Exemplar, id) {
+                Ok(p) => p.ok_or_else(unknown)?,
+                Err(StoreError::BadName(_)) => return Err(unknown()),
+                Err(e) => return Err(e.into()),
+            };
+            other = exemplar::decode(&payload)?.1;
+            if other.dim() != base_raster.dim() || other.georef != base_raster.georef {
+                let ((r, c), (br, bc)) = (other.dim(), base_raster.dim());
+                return Err(ServiceError::Invalid(format!(
+                    "{what}.exemplar `{id}` is {c}×{r} at {:?}: the raster must lie on the \
+                     base's grid, {bc}×{br} at {:?}",
+                    other.georef, base_raster.georef
+                )));
+            }
+            &other
+        };
+        let data = raster.layer(layer).cloned().ok_or_else(|| {
+            ServiceError::Invalid(format!(
+                "{what}.layer: exemplar `{id}` has no layer `{layer}` (upload it as a `{layer}` \
+                 part)"
+            ))
+        })?;
+        Ok(Grid::new(data, raster.georef))
     }
 
     /// The raster of a world's classes: layer [`WorldClassesRef::layer`] of exemplar
@@ -644,6 +774,8 @@ impl Catalogue {
                 water: None,
                 scatter: None,
                 classes: None,
+                biomes: Vec::new(),
+                controls: Vec::new(),
             },
             &self.defaults,
         )?;

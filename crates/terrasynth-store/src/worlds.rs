@@ -25,8 +25,15 @@ pub struct WorldDefinition {
     /// Exemplar id of the base (the coarse DEM or sketch).
     pub base: String,
     /// Dictionaries of the synthesis chain: ids (every amplified zoom) or `{"id", "zooms",
-    /// "amplifier"}` bands.
+    /// "amplifier"}` bands; empty in a biome world.
+    #[serde(default)]
     pub dictionaries: Vec<WorldDictionary>,
+    /// Painted biomes (instead of `dictionaries`): a dictionary and a weight layer each.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub biomes: Vec<WorldBiomeRef>,
+    /// Painted controls of species densities: a layer and a mode each.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub controls: Vec<WorldControlRef>,
     /// Deepest zoom served.
     pub max_zoom: u8,
     /// Matching weights by term or layer name.
@@ -116,6 +123,56 @@ impl WorldClassesRef {
     }
 }
 
+/// One painted biome of a world (#15): a dictionary and the layer of weights that says where
+/// its detail goes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WorldBiomeRef {
+    /// Dictionary (or gradient tile set) id amplifying this biome at every amplified zoom.
+    pub dictionary: String,
+    /// The weight raster: the name of a layer of `exemplar` (uploaded as a named multipart
+    /// part, e.g. `-F alps=@alps.tif`); weights finite and ≥ 0 at every cell.
+    #[schema(example = "alps")]
+    pub weight: String,
+    /// Exemplar holding the weight layer, on the base's grid; absent: the base exemplar.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exemplar: Option<String>,
+    /// The biome's name (default: `weight`); unique in the world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// `dictionary` (the default) or `gradient` (`dictionary` then names a gradient tile set).
+    #[serde(default, skip_serializing_if = "AmplifierKind::is_default")]
+    #[schema(value_type = String, example = "dictionary")]
+    pub amplifier: AmplifierKind,
+}
+
+impl WorldBiomeRef {
+    /// The biome's name: `name`, else the weight layer's.
+    pub fn name(&self) -> &str {
+        self.name.as_deref().unwrap_or(&self.weight)
+    }
+}
+
+/// A painted control of a species' density (#15): a layer of the base exemplar (or of another
+/// exemplar on its grid) that replaces or scales the species' density.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WorldControlRef {
+    /// The species it steers (one of the world's).
+    pub species: String,
+    /// The layer holding the painted values (uploaded as a named part).
+    pub layer: String,
+    /// `replace` (the density is the layer's value, 0–1) or `scale` (multiplied by it, ≥ 0).
+    #[schema(example = "replace")]
+    pub mode: String,
+    /// Exemplar holding the layer, on the base's grid; absent: the base exemplar.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exemplar: Option<String>,
+}
+
+/// The modes of [`WorldControlRef::mode`].
+pub const CONTROL_MODES: [&str; 2] = ["replace", "scale"];
+
 /// The exemplar layer of a class raster.
 pub const CLASSES_LAYER: &str = "classes";
 
@@ -146,8 +203,25 @@ pub struct WorldRequest {
     /// `"ZOOM"`, absent only for a single entry covering every zoom; bands lie above the native
     /// zoom and at most `max_zoom` and do not overlap; a zoom no band covers uses the nearest
     /// shallower band, zooms below the first band the first band; `amplifier`: `"dictionary"`
-    /// (default) or `"gradient"`, whose `id` is then a gradient tile set).
+    /// (default) or `"gradient"`, whose `id` is then a gradient tile set). Absent in a biome
+    /// world (`biomes`).
+    #[serde(default)]
     pub dictionaries: Vec<WorldDictionary>,
+    /// Painted biomes, instead of `dictionaries` (#15): `[{"dictionary": id, "weight": layer,
+    /// "exemplar", "name", "amplifier"}]` — each biome's dictionary amplifies where its weight
+    /// layer (a layer of the base exemplar, uploaded as a named part, or of `exemplar` on the
+    /// base's grid) paints it; the outputs are blended by the weights normalised per pixel.
+    /// Checked: 422 naming the problem (unknown dictionary or layer, weights off the base's
+    /// grid, negative or NaN, all 0; both `biomes` and `dictionaries`).
+    #[serde(default)]
+    pub biomes: Vec<WorldBiomeRef>,
+    /// Painted controls of species densities (default: none): `[{"species", "layer", "mode":
+    /// "replace" | "scale", "exemplar"}]` — the layer (of the base exemplar, uploaded as a named
+    /// part, or of `exemplar` on the base's grid) replaces the species' density (values 0–1) or
+    /// scales it (values ≥ 0) at the native zoom, and every zoom follows. Checked: 422 naming
+    /// the problem.
+    #[serde(default)]
+    pub controls: Vec<WorldControlRef>,
     /// Deepest zoom served (default: the default world's).
     #[serde(default)]
     pub max_zoom: Option<u8>,
@@ -363,6 +437,8 @@ impl WorldDefinition {
             name: r.name,
             base: r.base,
             dictionaries: r.dictionaries,
+            biomes: r.biomes,
+            controls: r.controls,
             max_zoom: r.max_zoom.unwrap_or(d.max_zoom),
             weights: r.weights.unwrap_or_else(|| d.weights.clone()),
             materials: r.materials.unwrap_or_default(),
@@ -433,8 +509,74 @@ impl WorldDefinition {
             ));
         }
         def.landscape(&d.landscape)?;
+        def.check_biomes()?;
+        for (i, c) in def.controls.iter().enumerate() {
+            if !CONTROL_MODES.contains(&c.mode.as_str()) {
+                return Err(ServiceError::Invalid(format!(
+                    "controls[{i}].mode `{}` must be `replace` or `scale`",
+                    c.mode
+                )));
+            }
+            if !is_valid_name(&c.layer) {
+                return Err(ServiceError::Invalid(format!(
+                    "controls[{i}].layer: unknown layer `{}`",
+                    c.layer
+                )));
+            }
+            if c.exemplar.as_ref().is_some_and(|e| !is_content_id(e)) {
+                return Err(ServiceError::Invalid(format!(
+                    "controls[{i}].exemplar: unknown exemplar `{}`",
+                    c.exemplar.as_deref().unwrap_or_default()
+                )));
+            }
+        }
         def.band_zooms()?;
         Ok(def)
+    }
+
+    /// Checks the biomes as far as the definition tells: not with `dictionaries`, names valid
+    /// and unique, ids well-formed.
+    pub fn check_biomes(&self) -> Result<(), ServiceError> {
+        if self.biomes.is_empty() {
+            return Ok(());
+        }
+        if !self.dictionaries.is_empty() {
+            return Err(ServiceError::Invalid(
+                "give either `biomes` or `dictionaries`, not both (each biome names its own \
+                 dictionary)"
+                    .into(),
+            ));
+        }
+        let mut names: Vec<&str> = Vec::new();
+        for (i, b) in self.biomes.iter().enumerate() {
+            if !is_content_id(&b.dictionary) {
+                return Err(ServiceError::Invalid(format!(
+                    "biomes[{i}]: unknown dictionary `{}`",
+                    b.dictionary
+                )));
+            }
+            if !is_valid_name(&b.weight) {
+                return Err(ServiceError::Invalid(format!(
+                    "biomes[{i}].weight: unknown layer `{}` (a layer name is {NAME_RULE})",
+                    b.weight
+                )));
+            }
+            if b.exemplar.as_ref().is_some_and(|e| !is_content_id(e)) {
+                return Err(ServiceError::Invalid(format!(
+                    "biomes[{i}].exemplar: unknown exemplar `{}`",
+                    b.exemplar.as_deref().unwrap_or_default()
+                )));
+            }
+            check_name(&format!("biomes[{i}].name"), b.name())?;
+            if names.contains(&b.name()) {
+                return Err(ServiceError::Invalid(format!(
+                    "biomes[{i}].name `{}` is used twice",
+                    b.name()
+                )));
+            }
+            names.push(b.name());
+        }
+        Ok(())
     }
 
     /// The zooms of each of the chain's dictionaries (`None`: every amplified zoom), checked as
@@ -442,6 +584,10 @@ impl WorldDefinition {
     /// and not overlapping, a bare id only alone. (Whether bands lie above the native zoom is
     /// checked when the world is made, since the base decides it.)
     pub fn band_zooms(&self) -> Result<Vec<Option<ZoomBand>>, ServiceError> {
+        if self.dictionaries.is_empty() && !self.biomes.is_empty() {
+            // A biome world: its biomes amplify every zoom.
+            return Ok(Vec::new());
+        }
         let mut out = Vec::with_capacity(self.dictionaries.len());
         for (i, d) in self.dictionaries.iter().enumerate() {
             out.push(match d {
@@ -525,6 +671,9 @@ impl WorldDefinition {
             .map(|c| c.config().names())
             .unwrap_or_default();
         l.check_classes(&class_names)
+            .map_err(|e| ServiceError::Invalid(e.to_string()))?;
+        let biome_names: Vec<String> = self.biomes.iter().map(|b| b.name().to_string()).collect();
+        l.check_biomes(&biome_names)
             .map_err(|e| ServiceError::Invalid(e.to_string()))?;
         Ok(l)
     }

@@ -54,9 +54,16 @@ pub fn small_dictionary_with_vegetation(seed: u64) -> Arc<Dictionary> {
 }
 
 fn small_dictionary_layers(seed: u64, vegetation: bool) -> Arc<Dictionary> {
-    let z = synthetic_terrain(160, 160, seed);
+    small_dictionary_of(synthetic_terrain(160, 160, seed), seed, vegetation)
+}
+
+/// A small dictionary (patch 16, stride 4, 64 atoms, as [`small_dictionary`]) built from the
+/// square 100 m exemplar `z` (at least 32² cells), with the default world's vegetation layers when
+/// `vegetation` (as [`small_dictionary_with_vegetation`]).
+pub fn small_dictionary_of(z: Array2<f32>, seed: u64, vegetation: bool) -> Arc<Dictionary> {
+    let rows = z.nrows();
     let layers = if vegetation {
-        let cells = terrasynth_core::raster::CellSizes::uniform(160, 100.0);
+        let cells = terrasynth_core::raster::CellSizes::uniform(rows, 100.0);
         terrasynth_core::landscape::exemplar_vegetation(
             &terrasynth_core::landscape::LandscapeConfig::tienshan(),
             &z.mapv(|v| v + 1000.0),
@@ -152,18 +159,37 @@ pub fn mini_world_bands(
     max_zoom: u8,
     cache_bytes: u64,
 ) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
-    use terrasynth_core::raster::{Crs, Georef, Grid};
-    let base = Grid::new(
-        heights,
-        Georef {
-            crs: Crs::Epsg4326,
-            west: 70.0,
-            north: 43.0,
-            pixel_width: 1.0 / 240.0,
-            pixel_height: 1.0 / 240.0,
-        },
-    );
-    terrasynth_tiles::World::new(terrasynth_tiles::WorldParts {
+    mini_world_parts(heights, dictionaries, Vec::new(), max_zoom, cache_bytes)
+}
+
+#[cfg(feature = "tiles")]
+fn mini_world_parts(
+    heights: Array2<f32>,
+    dictionaries: Vec<terrasynth_tiles::DictionaryBand>,
+    biomes: Vec<terrasynth_tiles::WorldBiome>,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
+    let base = terrasynth_core::raster::Grid::new(heights, mini_georef());
+    terrasynth_tiles::World::new(mini_parts(
+        base,
+        dictionaries,
+        biomes,
+        max_zoom,
+        cache_bytes,
+    ))
+}
+
+#[cfg(feature = "tiles")]
+/// The parts of [`mini_world_bands`] (and of a biome world), for tests that change a few.
+pub fn mini_parts(
+    base: terrasynth_core::raster::Grid,
+    dictionaries: Vec<terrasynth_tiles::DictionaryBand>,
+    biomes: Vec<terrasynth_tiles::WorldBiome>,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> terrasynth_tiles::WorldParts {
+    terrasynth_tiles::WorldParts {
         name: "mini".into(),
         title: "Mini".into(),
         attribution: "synthetic".into(),
@@ -179,7 +205,48 @@ pub fn mini_world_bands(
         sparsity: None,
         water: terrasynth_core::landscape::WaterConfig::default(),
         classes: None,
+        biomes,
+        controls: Vec::new(),
+    }
+}
+
+#[cfg(feature = "tiles")]
+/// [`mini_world`] painted with `biomes` (no `dictionaries`): a biome world (#15).
+pub fn mini_world_biomes(
+    heights: Array2<f32>,
+    biomes: Vec<terrasynth_tiles::WorldBiome>,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
+    mini_world_parts(heights, Vec::new(), biomes, max_zoom, cache_bytes)
+}
+
+#[cfg(feature = "tiles")]
+/// [`mini_world_biomes`] with landscape `landscape` instead of the default world's.
+pub fn mini_world_biomes_with(
+    heights: Array2<f32>,
+    biomes: Vec<terrasynth_tiles::WorldBiome>,
+    landscape: terrasynth_core::landscape::LandscapeConfig,
+    max_zoom: u8,
+    cache_bytes: u64,
+) -> Result<terrasynth_tiles::World, terrasynth_tiles::TileError> {
+    let base = terrasynth_core::raster::Grid::new(heights, mini_georef());
+    terrasynth_tiles::World::new(terrasynth_tiles::WorldParts {
+        landscape,
+        ..mini_parts(base, Vec::new(), biomes, max_zoom, cache_bytes)
     })
+}
+
+#[cfg(feature = "tiles")]
+/// The georeference of [`mini_world`]'s base: 15″ cells from 70°E 43°N.
+pub fn mini_georef() -> terrasynth_core::raster::Georef {
+    terrasynth_core::raster::Georef {
+        crs: terrasynth_core::raster::Crs::Epsg4326,
+        west: 70.0,
+        north: 43.0,
+        pixel_width: 1.0 / 240.0,
+        pixel_height: 1.0 / 240.0,
+    }
 }
 
 /// The XYZ tile `(x, y)` holding longitude/latitude `(lon, lat)` at zoom `z`: the standard

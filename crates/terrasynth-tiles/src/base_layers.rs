@@ -1,6 +1,6 @@
 //! Whole-world layers at the native zoom: priority-flood filling and D8 flow accumulation of the
 //! whole base (upstream area in m², ending in the sea, nothing from outside the coverage), and the niche model with the seeding simulation for
-//! vegetation. Drainage is global by nature, so it is computed once per world on a fixed window
+//! vegetation (then the world's painted species controls, [`crate::controls`]). Drainage is global by nature, so it is computed once per world on a fixed window
 //! of the native zoom's plane ([`crate::extent::Extent::world_window`]); the native-zoom tiles of
 //! drainage and vegetation are cut out of it.
 
@@ -12,6 +12,7 @@ use terrasynth_core::analysis;
 use terrasynth_core::landscape::{vegetation, LandscapeConfig};
 
 use crate::classes::ClassWeights;
+use crate::controls::SpeciesControls;
 use terrasynth_core::synth::Window;
 
 use crate::cancel::uncancellable;
@@ -73,15 +74,23 @@ fn cut_at(a: &Array2<f32>, aw: Window, w: Window, r: usize, c: usize) -> f32 {
 pub struct WholeWorld {
     landscape: Arc<LandscapeConfig>,
     classes: Arc<ClassWeights>,
+    /// Painted controls of species densities ([`crate::controls`]).
+    controls: SpeciesControls,
     layers: OnceLock<Result<Arc<BaseLayers>, TileError>>,
 }
 
 impl WholeWorld {
-    /// The whole-world layers of a world with this landscape, not computed yet.
-    pub fn new(landscape: Arc<LandscapeConfig>, classes: Arc<ClassWeights>) -> Self {
+    /// The whole-world layers of a world with this landscape, not computed yet; `controls`
+    /// steer its species' densities.
+    pub fn new(
+        landscape: Arc<LandscapeConfig>,
+        classes: Arc<ClassWeights>,
+        controls: SpeciesControls,
+    ) -> Self {
         WholeWorld {
             landscape,
             classes,
+            controls,
             layers: OnceLock::new(),
         }
     }
@@ -91,7 +100,9 @@ impl WholeWorld {
     pub fn get(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
         self.layers
             .get_or_init(|| {
-                uncancellable(|| compute(elevation, &self.landscape, &self.classes).map(Arc::new))
+                uncancellable(|| {
+                    compute(elevation, &self.landscape, &self.classes, &self.controls).map(Arc::new)
+                })
             })
             .clone()
     }
@@ -101,6 +112,7 @@ fn compute(
     elevation: &ElevationLevels,
     landscape: &LandscapeConfig,
     classes: &ClassWeights,
+    controls: &SpeciesControls,
 ) -> Result<BaseLayers, TileError> {
     let extent = elevation.extent();
     let z = extent.z_base;
@@ -138,12 +150,16 @@ fn compute(
     let wetness = analysis::log_upstream_area(&area64);
     let area = area64.mapv(|v| v as f32);
     drop(area64);
-    let class_weights = if landscape.species.iter().any(|s| !s.class.is_empty()) {
+    let class_weights = if landscape
+        .species
+        .iter()
+        .any(|s| !s.class.is_empty() || !s.biome.is_empty())
+    {
         classes.window(z, window)
     } else {
         Vec::new()
     };
-    let vegetation = vegetation::densities(
+    let mut vegetation = vegetation::densities(
         landscape,
         &heights,
         &cells,
@@ -151,6 +167,7 @@ fn compute(
         (window.row0, window.col0),
         &class_weights,
     );
+    controls.apply(z, window, &mut vegetation);
     Ok(BaseLayers {
         window,
         area,

@@ -9,6 +9,8 @@
 //! way onto each level's parent window, matching the class layers of dictionaries built from
 //! exemplars with a `classes` layer.
 
+use std::sync::Arc;
+
 use ndarray::Array2;
 
 use terrasynth_core::landscape::classes::{class_values, class_weight};
@@ -17,6 +19,7 @@ use terrasynth_core::raster::reproject::to_geographic;
 use terrasynth_core::raster::{Crs, Grid};
 use terrasynth_core::synth::Window;
 
+use crate::biomes::BiomeWeights;
 use crate::error::TileError;
 use crate::resample::mercator_window_from_grid;
 
@@ -30,10 +33,14 @@ pub struct WorldClasses {
     pub raster: Grid,
 }
 
-/// The class weight grids of a world (on the base's grid, EPSG:4326 or 3857), by class name.
+/// The class weight grids of a world (on the base's grid, EPSG:4326 or 3857), by class name;
+/// in a biome world also the painted biome weights, which [`ClassWeights::window`] gives under
+/// `biome.<name>` for the `biome.<name>` terms of materials and species.
 #[derive(Clone, Debug, Default)]
 pub struct ClassWeights {
     grids: Vec<(String, Grid)>,
+    /// A biome world's biome weights.
+    biomes: Option<Arc<BiomeWeights>>,
     /// The matching's class probability layers (`classes_<v>`), when asked for.
     indicators: Vec<(String, Grid)>,
 }
@@ -112,8 +119,15 @@ impl ClassWeights {
         }
         Ok(ClassWeights {
             grids,
+            biomes: None,
             indicators: probabilities,
         })
+    }
+
+    /// These weights with a biome world's biome weights (for `biome.<name>` terms).
+    pub fn with_biomes(mut self, biomes: Arc<BiomeWeights>) -> Self {
+        self.biomes = Some(biomes);
+        self
     }
 
     /// The class names, in code order.
@@ -147,15 +161,22 @@ impl ClassWeights {
             .collect()
     }
 
-    /// The weights over window `w` of zoom `z` (0 outside the classes' raster), by class name.
+    /// The weights over window `w` of zoom `z` (0 outside the classes' raster), by class name;
+    /// then, in a biome world, every biome's normalised weight (as the amplifier blends them)
+    /// under `biome.<name>`.
     pub fn window(&self, z: u8, w: Window) -> Vec<(String, Array2<f32>)> {
-        self.grids
+        let mut out: Vec<(String, Array2<f32>)> = self
+            .grids
             .iter()
             .map(|(n, g)| {
                 let (v, _) = mercator_window_from_grid(g, z, w.col0, w.row0, w.cols, w.rows, 0.0);
                 (n.clone(), v)
             })
-            .collect()
+            .collect();
+        if let Some(b) = &self.biomes {
+            out.extend(b.named_window(z, w));
+        }
+        out
     }
 
     /// A hash input of the weights (for the world's fingerprint).

@@ -7,6 +7,8 @@
 //! [`Level::parent_window_for`] names, assembled from cached parent tiles; since the amplifier
 //! is window-invariant, a tile computed alone equals the same window of any larger region. A tile
 //! of zoom `z < z_b` is the 2×2 box average of its four children, so zooming is consistent.
+//! In a biome world every biome painted over a tile amplifies the same parent window and the
+//! outputs are blended by the painted weights ([`crate::biomes`]).
 //!
 //! Amplified pixels outside the base's coverage are the fill, exactly. Cells under water keep
 //! their bed elevation; where the bed is exactly flat under water (a
@@ -36,6 +38,7 @@ use terrasynth_core::landscape::{water, WaterConfig};
 use terrasynth_core::raster::{box2, Grid};
 use terrasynth_core::synth::{AnyAmplifier, Field, Level, Window};
 
+use crate::biomes::{blend, Biomes};
 use crate::cancel::uncancellable;
 use crate::chain::Chain;
 use crate::classes::ClassWeights;
@@ -51,6 +54,8 @@ pub struct ElevationLevels {
     fill_m: f32,
     extent: Extent,
     amplifiers: Chain<AnyAmplifier>,
+    /// A biome world's biomes ([`crate::biomes`]; `None`: the chain amplifies alone).
+    biomes: Option<Biomes<AnyAmplifier>>,
     cache: LevelCache<Array2<f32>>,
     coverage: CoverageLevels,
     water: WaterConfig,
@@ -137,13 +142,15 @@ impl ElevationLevels {
     /// Levels over `base` (outside it: `fill_m`), each zoom amplified with its band's amplifier
     /// of `amplifiers`, cached in at most `cache_bytes` bytes (the coverage overviews in at most
     /// `coverage_bytes` more), with the sea and lakes of `water`; `classes`: the class
-    /// probabilities its matching reads (none: elevation only).
+    /// probabilities its matching reads (none: elevation only); `biomes`: a biome world's
+    /// biomes, which then amplify instead of `amplifiers`.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         base: Grid,
         fill_m: f32,
         extent: Extent,
         amplifiers: Chain<AnyAmplifier>,
+        biomes: Option<Biomes<AnyAmplifier>>,
         cache_bytes: u64,
         coverage_bytes: u64,
         water: WaterConfig,
@@ -155,6 +162,7 @@ impl ElevationLevels {
             fill_m,
             extent,
             amplifiers,
+            biomes,
             water,
             classes,
             base_water: OnceLock::new(),
@@ -322,24 +330,32 @@ impl ElevationLevels {
         route: Route,
         skipped: &mut Vec<TileKey>,
     ) -> Result<Array2<f32>, TileError> {
-        let amplifier = self.amplifiers.at(z);
-        let need = amplifier.parent_window_for(w);
-        let parent = self.parent_window(z - 1, need, route, skipped)?;
-        if crate::cancel::is_cancelled() {
-            return Err(TileError::Cancelled);
-        }
-        // The world's class probabilities, for a dictionary's class term (none: elevation only).
-        let layers = match amplifier {
-            AnyAmplifier::Dictionary(_) => self.classes.indicator_window(z - 1, need),
-            AnyAmplifier::Gradient(_) => Vec::new(),
+        let (mut out, parent) = match &self.biomes {
+            None => {
+                let amplifier = self.amplifiers.at(z);
+                let need = amplifier.parent_window_for(w);
+                let parent = self.parent_window(z - 1, need, route, skipped)?;
+                if crate::cancel::is_cancelled() {
+                    return Err(TileError::Cancelled);
+                }
+                // The world's class probabilities, for a dictionary's class term (none:
+                // elevation only).
+                let layers = match amplifier {
+                    AnyAmplifier::Dictionary(_) => self.classes.indicator_window(z - 1, need),
+                    AnyAmplifier::Gradient(_) => Vec::new(),
+                };
+                let parent = Field {
+                    window: need,
+                    elevation: parent,
+                    layers,
+                };
+                let field =
+                    amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
+                (field.elevation, parent)
+            }
+            Some(biomes) => self.amplify_biomes(biomes, z, w, route, skipped)?,
         };
-        let parent = Field {
-            window: need,
-            elevation: parent,
-            layers,
-        };
-        let field = amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
-        let mut out = field.elevation;
+        let need = parent.window;
         // Outside the coverage the elevation is the fill, exactly (no detail over no data).
         let coverage = self.coverage_window(z, w)?;
         ndarray::Zip::from(&mut out)
@@ -360,6 +376,50 @@ impl ElevationLevels {
             );
         }
         Ok(out)
+    }
+
+    /// Window `w` of amplified zoom `z` of a biome world: every biome painted over `w`
+    /// amplifies the same parent window, and the outputs are blended by the normalised weights
+    /// ([`crate::biomes`]). Returns the blend and the parent field.
+    fn amplify_biomes(
+        &self,
+        biomes: &Biomes<AnyAmplifier>,
+        z: u8,
+        w: Window,
+        route: Route,
+        skipped: &mut Vec<TileKey>,
+    ) -> Result<(Array2<f32>, Field), TileError> {
+        let need = biomes.parent_window_for(w);
+        let parent = self.parent_window(z - 1, need, route, skipped)?;
+        if crate::cancel::is_cancelled() {
+            return Err(TileError::Cancelled);
+        }
+        let painted = biomes.weights.window(z, w);
+        // The class probabilities, for the dictionaries' class term (the gradient amplifiers
+        // of elevation drop extra layers).
+        let any_dictionary = painted
+            .iter()
+            .any(|(i, _)| matches!(biomes.amplifiers[*i], AnyAmplifier::Dictionary(_)));
+        let layers = if any_dictionary {
+            self.classes.indicator_window(z - 1, need)
+        } else {
+            Vec::new()
+        };
+        let parent = Field {
+            window: need,
+            elevation: parent,
+            layers,
+        };
+        let cell = self.extent.level_cell_m(z - 1) as f32;
+        let mut outs = Vec::with_capacity(painted.len());
+        for (i, _) in &painted {
+            if crate::cancel::is_cancelled() {
+                return Err(TileError::Cancelled);
+            }
+            outs.push(biomes.amplifiers[*i].amplify(&parent, w, cell)?.elevation);
+        }
+        let pairs: Vec<_> = painted.iter().map(|(_, wt)| wt).zip(&outs).collect();
+        Ok((blend(&pairs), parent))
     }
 
     /// Window `w` of zoom `z` as a child's parent: assembled from tiles, unless the least-work

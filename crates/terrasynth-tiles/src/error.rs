@@ -59,6 +59,12 @@ pub enum TileError {
     /// The world's landscape settings are invalid.
     #[error(transparent)]
     Landscape(#[from] LandscapeError),
+    /// A world's painted biomes are invalid ([`crate::biomes`]).
+    #[error("biomes: {0}")]
+    Biomes(String),
+    /// A world's painted species controls are invalid ([`crate::controls`]).
+    #[error("controls: {0}")]
+    Controls(String),
     /// Tile bytes could not be produced.
     #[error("cannot encode tile: {0}")]
     Encode(String),

@@ -4,8 +4,8 @@
 //! grid onto a zoom's plane ([`resample`]), the one level pyramid every layer uses ([`pyramid`]:
 //! get-or-compute with coalescing, window assembly, overviews, byte weighing), the layers' pyramids
 //! ([`elevation`], [`drainage`], [`vegetation`], [`water`], the whole-world layers of the native zoom in
-//! [`base_layers`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
-//! ([`world`]) with a dictionary per zoom band ([`chain`]), instances of plants and rocks as vector
+//! [`base_layers`], steered by painted species controls, [`controls`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
+//! ([`world`]) with a dictionary per zoom band ([`chain`]) or painted biomes ([`biomes`]), instances of plants and rocks as vector
 //! tiles ([`instances`]), contour lines of the served elevation as vector tiles ([`contours`]),
 //! tile requests ([`request`]), renderers ([`render`]), encoders
 //! ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and point queries of the served
@@ -17,10 +17,12 @@
 //! sockets and no HTTP types: the server translates HTTP into these calls.
 
 pub mod base_layers;
+pub mod biomes;
 pub mod cancel;
 pub mod chain;
 pub mod classes;
 pub mod contours;
+pub mod controls;
 pub mod coverage;
 pub mod drainage;
 pub mod elevation;
@@ -42,9 +44,11 @@ pub mod vegetation;
 pub mod water;
 pub mod world;
 
+pub use biomes::{BiomeWeights, WorldBiome};
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use chain::{Chain, DictionaryBand};
 pub use classes::{ClassWeights, WorldClasses};
+pub use controls::{ControlMode, SpeciesControl, SpeciesControls};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
     encode_mapbox_png, encode_mapbox_webp, encode_rgba_png, encode_rgba_webp, encode_terrarium_png,

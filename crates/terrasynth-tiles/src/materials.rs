@@ -63,13 +63,16 @@ pub fn material_tile(
         .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)?;
     let wet = wetness(&area);
     let veg = vegetation.tile(inputs, z, tx, ty)?;
-    // Only the classes a material names are sampled.
-    let class_weights: Vec<(String, Array2<f32>)> =
-        if landscape.materials.iter().any(|m| !m.class.is_empty()) {
-            classes.window(z, w)
-        } else {
-            Vec::new()
-        };
+    // Only the classes (and biomes) a material names are sampled.
+    let class_weights: Vec<(String, Array2<f32>)> = if landscape
+        .materials
+        .iter()
+        .any(|m| !m.class.is_empty() || !m.biome.is_empty())
+    {
+        classes.window(z, w)
+    } else {
+        Vec::new()
+    };
     let layer_inputs = LayerInputs {
         elevation: &terrain.elevation,
         slope: &terrain.slope,

@@ -8,7 +8,9 @@
 //!   dictionary lacks is carried by the smooth up-sampling of its parent). Then the niche model on
 //!   the served terrain moves the density of each parent pixel among its 2×2 children in
 //!   proportion to their suitability (the parent's density is kept), and the viability step fades
-//!   it on marginal ground and zeroes it where the niche excludes it.
+//!   it on marginal ground and zeroes it where the niche excludes it. In a biome world each
+//!   biome painted over the tile amplifies the densities with its own matches and they are
+//!   blended by the painted weights before the niche ([`crate::biomes`]).
 //! - **Coverage and water**: density is 0 outside the base's coverage ([`crate::coverage`]) and
 //!   under water ([`crate::water`]).
 //! - **Overviews** (`z < z_b`): the 2×2 box average of the children (densities average).
@@ -24,6 +26,7 @@ use terrasynth_core::raster::box2;
 use terrasynth_core::synth::{AnyAmplifier, Field, Level, SynthError, Window};
 
 use crate::base_layers::{cut, WholeWorld};
+use crate::biomes::{blend, Biomes};
 use crate::chain::Chain;
 use crate::coverage::mask_in_place;
 use crate::drainage::DrainageLevels;
@@ -55,22 +58,28 @@ pub struct VegetationLevels {
     /// The amplifiers (one per zoom band) reconstructing the species layers from the same
     /// matches as elevation.
     amplifiers: Chain<AnyAmplifier>,
+    /// A biome world's biomes (amplifiers reconstructing the species layers), blended as the
+    /// elevation's are; `None`: the chain amplifies alone.
+    biomes: Option<Biomes<AnyAmplifier>>,
     cache: LevelCache<Vec<Array2<f32>>>,
 }
 
 impl VegetationLevels {
     /// Vegetation of `landscape`'s species, amplified with the zoom's band of `amplifiers` (which
-    /// reconstruct only the species layers), cached in at most `cache_bytes` bytes.
+    /// reconstruct only the species layers) or, in a biome world, `biomes`, cached in at most
+    /// `cache_bytes` bytes.
     pub fn new(
         landscape: Arc<LandscapeConfig>,
         classes: Arc<ClassWeights>,
         amplifiers: Chain<AnyAmplifier>,
+        biomes: Option<Biomes<AnyAmplifier>>,
         cache_bytes: u64,
     ) -> Self {
         VegetationLevels {
             landscape,
             classes,
             amplifiers,
+            biomes,
             cache: LevelCache::new(cache_bytes),
         }
     }
@@ -139,38 +148,44 @@ impl VegetationLevels {
             });
         }
         // Same parent elevation window, hence same matches, as the elevation tile.
-        let amp = self.amplifiers.at(z);
-        let need = amp.parent_window_for(w);
-        let parent_elev = inputs.elevation.window(z - 1, need)?;
-        let parent_veg = self.window(inputs, z - 1, need)?;
-        // The gradient amplifier reconstructs every layer it is given (from its coarse gradients).
-        let in_dict: Vec<bool> = species
-            .iter()
-            .map(|sp| match amp {
-                AnyAmplifier::Dictionary(a) => a.dictionary().layer_index(&sp.name).is_some(),
-                AnyAmplifier::Gradient(_) => true,
-            })
-            .collect();
-        let mut layers: Vec<(String, Array2<f32>)> = species
-            .iter()
-            .zip(&parent_veg)
-            .zip(&in_dict)
-            .filter(|(_, &d)| d)
-            .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
-            .collect();
-        // The class probabilities the elevation's matching reads: the same matches.
-        if let AnyAmplifier::Dictionary(_) = amp {
-            layers.extend(self.classes.indicator_window(z - 1, need));
-        }
-        let parent = Field {
-            window: need,
-            elevation: parent_elev,
-            layers,
-        };
-        let field = if in_dict.iter().any(|&d| d) {
-            Some(amp.amplify(&parent, w, extent.level_cell_m(z - 1) as f32)?)
-        } else {
-            None
+        let cell = extent.level_cell_m(z - 1) as f32;
+        let amplified = match &self.biomes {
+            None => {
+                let amp = self.amplifiers.at(z);
+                let need = amp.parent_window_for(w);
+                let parent_elev = inputs.elevation.window(z - 1, need)?;
+                let parent_veg = self.window(inputs, z - 1, need)?;
+                self.amplify_species(amp, z, w, need, parent_elev, &parent_veg, cell)?
+            }
+            Some(biomes) => {
+                // Every biome painted over the tile, blended as the elevation is.
+                let need = biomes.parent_window_for(w);
+                let parent_elev = inputs.elevation.window(z - 1, need)?;
+                let parent_veg = self.window(inputs, z - 1, need)?;
+                let painted = biomes.weights.window(z, w);
+                let mut per_biome = Vec::with_capacity(painted.len());
+                for (i, _) in &painted {
+                    per_biome.push(self.amplify_species(
+                        &biomes.amplifiers[*i],
+                        z,
+                        w,
+                        need,
+                        parent_elev.clone(),
+                        &parent_veg,
+                        cell,
+                    )?);
+                }
+                (0..species.len())
+                    .map(|k| {
+                        let pairs: Vec<_> = painted
+                            .iter()
+                            .map(|(_, wt)| wt)
+                            .zip(per_biome.iter().map(|layers| &layers[k]))
+                            .collect();
+                        blend(&pairs)
+                    })
+                    .collect()
+            }
         };
         // The niche on the served terrain moves density inside each parent pixel's 2×2 children
         // (the parent's density is kept where the children can hold it).
@@ -182,25 +197,16 @@ impl VegetationLevels {
         let viability = self.landscape.viability;
         let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
         let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
-        let class_weights = if species.iter().any(|s| !s.class.is_empty()) {
+        let class_weights = if species
+            .iter()
+            .any(|s| !s.class.is_empty() || !s.biome.is_empty())
+        {
             self.classes.window(z, w)
         } else {
             Vec::new()
         };
         let mut out = Vec::with_capacity(species.len());
-        for (k, sp) in species.iter().enumerate() {
-            let mut d = match field.as_ref().and_then(|f| f.layer(&sp.name)) {
-                Some(a) => a.clone(),
-                None => match amp {
-                    AnyAmplifier::Dictionary(a) => a.upsample_layer(&parent_veg[k], need, w)?,
-                    AnyAmplifier::Gradient(_) => {
-                        return Err(TileError::Synth(SynthError::BadWindow(format!(
-                            "the gradient level returned no `{}` layer",
-                            sp.name
-                        ))))
-                    }
-                },
-            };
+        for (sp, mut d) in species.iter().zip(amplified) {
             let mut suit = vegetation::suitability_grid(
                 sp,
                 &terrain.elevation,
@@ -219,6 +225,68 @@ impl VegetationLevels {
             mask_in_place(&mut d, &coverage);
             zero_under_water(&mut d, depth);
             out.push(d);
+        }
+        Ok(out)
+    }
+
+    /// Every species' density over window `w` of amplified zoom `z` as amplifier `amp` makes it
+    /// from parent window `need` (elevation and densities): the amplified layers of the
+    /// species its dictionary carries, the smooth up-sampling of the others (before the niche).
+    #[allow(clippy::too_many_arguments)]
+    fn amplify_species(
+        &self,
+        amp: &AnyAmplifier,
+        z: u8,
+        w: Window,
+        need: Window,
+        parent_elev: Array2<f32>,
+        parent_veg: &[Array2<f32>],
+        cell: f32,
+    ) -> Result<Vec<Array2<f32>>, TileError> {
+        let species = &self.landscape.species;
+        // The gradient amplifier reconstructs every layer it is given (from its coarse gradients).
+        let in_dict: Vec<bool> = species
+            .iter()
+            .map(|sp| match amp {
+                AnyAmplifier::Dictionary(a) => a.dictionary().layer_index(&sp.name).is_some(),
+                AnyAmplifier::Gradient(_) => true,
+            })
+            .collect();
+        let mut layers: Vec<(String, Array2<f32>)> = species
+            .iter()
+            .zip(parent_veg)
+            .zip(&in_dict)
+            .filter(|(_, &d)| d)
+            .map(|((sp, a), _)| (sp.name.clone(), a.clone()))
+            .collect();
+        // The class probabilities the elevation's matching reads: the same matches.
+        if let AnyAmplifier::Dictionary(_) = amp {
+            layers.extend(self.classes.indicator_window(z - 1, need));
+        }
+        let parent = Field {
+            window: need,
+            elevation: parent_elev,
+            layers,
+        };
+        let field = if in_dict.iter().any(|&d| d) {
+            Some(amp.amplify(&parent, w, cell)?)
+        } else {
+            None
+        };
+        let mut out = Vec::with_capacity(species.len());
+        for (k, sp) in species.iter().enumerate() {
+            out.push(match field.as_ref().and_then(|f| f.layer(&sp.name)) {
+                Some(a) => a.clone(),
+                None => match amp {
+                    AnyAmplifier::Dictionary(a) => a.upsample_layer(&parent_veg[k], need, w)?,
+                    AnyAmplifier::Gradient(_) => {
+                        return Err(TileError::Synth(SynthError::BadWindow(format!(
+                            "the gradient level returned no `{}` layer",
+                            sp.name
+                        ))))
+                    }
+                },
+            });
         }
         Ok(out)
     }

@@ -25,8 +25,10 @@ use terrasynth_core::synth::{
 };
 
 use crate::base_layers::{base_layer_bytes, WholeWorld};
+use crate::biomes::{BiomeWeights, Biomes, WorldBiome};
 use crate::chain::{Chain, DictionaryBand};
 use crate::classes::{ClassWeights, WorldClasses};
+use crate::controls::{SpeciesControl, SpeciesControls};
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
@@ -74,6 +76,13 @@ pub struct WorldParts {
     /// Land-cover classes on the base's grid ([`crate::classes`]); `None`: no classes (a
     /// material's `class.<name>` term then names an unknown class).
     pub classes: Option<WorldClasses>,
+    /// Painted biomes ([`crate::biomes`]): several dictionaries, each with a weight raster on
+    /// the base's grid; empty: none. A biome world's `dictionaries` must be empty (the biomes
+    /// amplify every zoom).
+    pub biomes: Vec<WorldBiome>,
+    /// Painted controls replacing or scaling species densities ([`crate::controls`]); empty:
+    /// none.
+    pub controls: Vec<SpeciesControl>,
 }
 
 /// A snapshot of a world's counters, for `/metrics`.
@@ -126,6 +135,8 @@ pub struct World {
     center: [f64; 2],
     /// The chain's bands: zooms (`None`: every amplified zoom) and dictionary id.
     bands: Vec<(Option<ZoomBand>, String)>,
+    /// The biomes' names, in the order given (empty: not a biome world).
+    biome_names: Vec<String>,
     fingerprint: String,
     /// [`World::etag_seed`]: the hash states of tile ETags after the world's own part.
     etag_seeds: [sha2::Sha256; 2],
@@ -210,7 +221,13 @@ fn band_amplifier(
 }
 
 /// Hex SHA-256 of everything that determines a world's tiles.
-fn fingerprint(parts: &WorldParts, z_base: u8, classes: &ClassWeights) -> String {
+fn fingerprint(
+    parts: &WorldParts,
+    z_base: u8,
+    classes: &ClassWeights,
+    biomes: &BiomeWeights,
+    controls: &SpeciesControls,
+) -> String {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
@@ -245,6 +262,21 @@ fn fingerprint(parts: &WorldParts, z_base: u8, classes: &ClassWeights) -> String
         h.update(classes.fingerprint_bytes());
         h.update(b"|");
     }
+    if !biomes.is_empty() {
+        // Absent before biomes: worlds without biomes keep their fingerprint.
+        h.update(b"biomes=");
+        for b in &parts.biomes {
+            h.update(format!("{}@{}|", b.name, b.id).as_bytes());
+        }
+        h.update(biomes.fingerprint_bytes());
+        h.update(b"|");
+    }
+    if !controls.is_empty() {
+        // Absent before controls: worlds without controls keep their fingerprint.
+        h.update(b"controls=");
+        h.update(controls.fingerprint_bytes());
+        h.update(b"|");
+    }
     for v in parts.base.data.iter() {
         h.update(v.to_bits().to_le_bytes());
     }
@@ -270,6 +302,27 @@ impl World {
             None => ClassWeights::default(),
         };
         parts.landscape.check_classes(&classes.names())?;
+        // Biomes, like classes, lie on the base's grid as given.
+        let biome_weights = if parts.biomes.is_empty() {
+            BiomeWeights::default()
+        } else {
+            if !parts.dictionaries.is_empty() {
+                return Err(TileError::Biomes(
+                    "a world takes `biomes` or `dictionary`/`dictionaries`, not both".into(),
+                ));
+            }
+            let w = BiomeWeights::of(&parts.biomes, &parts.base)?;
+            // The chain (unused while biomes amplify) and the bands listed: the biomes'
+            // dictionaries, the dominant one first.
+            let d = &parts.biomes[w.dominant()];
+            parts.dictionaries = vec![DictionaryBand::every_zoom(
+                d.dictionary.clone(),
+                d.id.clone(),
+            )];
+            w
+        };
+        // Controls, like classes, lie on the base's grid as given.
+        let controls = SpeciesControls::of(&parts.controls, &parts.landscape, &parts.base)?;
         if matches!(parts.base.georef.crs, Crs::Projected(_)) {
             parts.base =
                 to_geographic(&parts.base).map_err(|e| TileError::Raster(e.to_string()))?;
@@ -293,7 +346,34 @@ impl World {
         let layer_amplifiers = Chain::new(&parts.dictionaries, |b| {
             band_amplifier(b, &parts.weights, levers, Some(&species))
         })?;
-        let fingerprint = fingerprint(&parts, extent.z_base, &classes);
+        // One copy of the weights, shared by the pyramids and the landscape's terms.
+        let shared_biomes = Arc::new(biome_weights.clone());
+        let biomes = |species: Option<&[String]>| -> Result<_, TileError> {
+            if biome_weights.is_empty() {
+                return Ok(None);
+            }
+            let weights = shared_biomes.clone();
+            let amplifiers = parts
+                .biomes
+                .iter()
+                .map(|b| {
+                    band_amplifier(
+                        &DictionaryBand::every_zoom(b.dictionary.clone(), b.id.clone()),
+                        &parts.weights,
+                        levers,
+                        species,
+                    )
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(Some(Biomes {
+                amplifiers,
+                weights,
+            }))
+        };
+        let elevation_biomes = biomes(None)?;
+        let vegetation_biomes = biomes(Some(&species))?;
+        parts.landscape.check_biomes(biome_weights.names())?;
+        let fingerprint = fingerprint(&parts, extent.z_base, &classes, &biome_weights, &controls);
         // The whole-world landscape layers come out of the same budget; the level caches keep
         // at least a quarter of it.
         let wet = parts.water.may_have_water();
@@ -302,7 +382,9 @@ impl World {
             parts.landscape.species.len(),
             wet,
         )
-        .saturating_add(classes.bytes());
+        .saturating_add(classes.bytes())
+        .saturating_add(biome_weights.bytes())
+        .saturating_add(controls.bytes());
         let budget = parts
             .cache_bytes
             .saturating_sub(base_bytes)
@@ -316,7 +398,12 @@ impl World {
             .unwrap_or_else(|| extent.middle());
         let etag_seeds = etag_seeds(&fingerprint, &scatter_fingerprint(&parts.landscape));
         let landscape = Arc::new(parts.landscape);
-        let classes = Arc::new(classes);
+        // Materials and species read the biome weights with the class weights.
+        let classes = Arc::new(if biome_weights.is_empty() {
+            classes
+        } else {
+            classes.with_biomes(shared_biomes)
+        });
         Ok(World {
             memory: MemoryPlan {
                 share: parts.cache_bytes,
@@ -327,11 +414,16 @@ impl World {
             title: parts.title,
             attribution: parts.attribution,
             center,
-            bands: parts
-                .dictionaries
-                .iter()
-                .map(|b| (b.zooms, b.id.clone()))
-                .collect(),
+            bands: if parts.biomes.is_empty() {
+                parts
+                    .dictionaries
+                    .iter()
+                    .map(|b| (b.zooms, b.id.clone()))
+                    .collect()
+            } else {
+                parts.biomes.iter().map(|b| (None, b.id.clone())).collect()
+            },
+            biome_names: biome_weights.names().to_vec(),
             fingerprint,
             etag_seeds,
             elevation: ElevationLevels::new(
@@ -339,17 +431,19 @@ impl World {
                 parts.fill_m,
                 extent,
                 amplifiers,
+                elevation_biomes,
                 budget / 2,
                 budget / 64,
                 parts.water.clone(),
                 classes.clone(),
             ),
-            whole: WholeWorld::new(landscape.clone(), classes.clone()),
+            whole: WholeWorld::new(landscape.clone(), classes.clone(), controls),
             drainage: DrainageLevels::new(budget / 4 - budget / 64 - water_bytes / 2),
             vegetation: VegetationLevels::new(
                 landscape.clone(),
                 classes.clone(),
                 layer_amplifiers,
+                vegetation_biomes,
                 budget / 4 - water_bytes / 2,
             ),
             water: WaterLevels::new(water_bytes),
@@ -478,6 +572,12 @@ impl World {
     /// they were given.
     pub fn dictionary_bands(&self) -> &[(Option<ZoomBand>, String)] {
         &self.bands
+    }
+
+    /// The names of a biome world's biomes, in the order given (empty: not a biome world); their
+    /// dictionaries are [`World::dictionary_ids`], in the same order.
+    pub fn biome_names(&self) -> &[String] {
+        &self.biome_names
     }
 
     /// The landscape configuration.

@@ -20,7 +20,7 @@ pub use model::{Clustering, DrainageStyle, LandscapeConfig, Material, Species, T
 pub use scatter::{Instance, Method, RuleField, ScatterRule, SizeRange};
 pub use splat::{colour_of, material_weights, quantise_weights, LayerInputs};
 pub use vegetation::{
-    class_factor, cluster_densities, exemplar_vegetation, suitability, viability_gate,
+    biome_key, class_factor, cluster_densities, exemplar_vegetation, suitability, viability_gate,
 };
 pub use water::{water, Water, WaterConfig};
 

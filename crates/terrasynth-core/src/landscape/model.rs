@@ -91,6 +91,10 @@ pub struct Species {
     /// where a world gives class weights (dictionary builds, which have none, ignore them).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub class: BTreeMap<String, Trapezoid>,
+    /// Painted biome weights by biome name (`biome.<name>`: the biome's normalised weight,
+    /// 0–1), as for materials; the world must have those biomes.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub biome: BTreeMap<String, Trapezoid>,
 }
 
 // `Debug` by hand: as derived, with `class` only when it is not empty, so the text of a species
@@ -107,6 +111,9 @@ impl std::fmt::Debug for Species {
             .field("wetness", &self.wetness);
         if !self.class.is_empty() {
             d.field("class", &self.class);
+        }
+        if !self.biome.is_empty() {
+            d.field("biome", &self.biome);
         }
         d.finish()
     }
@@ -125,6 +132,9 @@ impl std::fmt::Debug for Material {
             .field("vegetation", &self.vegetation);
         if !self.class.is_empty() {
             d.field("class", &self.class);
+        }
+        if !self.biome.is_empty() {
+            d.field("biome", &self.biome);
         }
         d.field("spread", &self.spread)
             .field("spread_scale_m", &self.spread_scale_m)
@@ -197,6 +207,10 @@ pub struct Material {
     /// smoothed over the world's `classes.smoothing_m`); the world must define those classes.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub class: BTreeMap<String, Trapezoid>,
+    /// Painted biome weights by biome name (`biome.<name>`: the biome's weight normalised over
+    /// the world's biomes, 0–1); the world must have those biomes.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub biome: BTreeMap<String, Trapezoid>,
     /// Amplitude of the noise modulation, 0..1 (0: none).
     #[serde(default)]
     pub spread: f32,
@@ -272,6 +286,7 @@ impl Default for LandscapeConfig {
                 wetness: None,
                 vegetation: BTreeMap::new(),
                 class: BTreeMap::new(),
+                biome: BTreeMap::new(),
                 spread: 0.0,
                 spread_scale_m: default_spread_scale(),
             }],
@@ -341,6 +356,9 @@ impl LandscapeConfig {
             for (class, t) in &s.class {
                 t.check(&format!("species {} class.{class}", s.name))?;
             }
+            for (biome, t) in &s.biome {
+                t.check(&format!("species {} biome.{biome}", s.name))?;
+            }
         }
         for (i, m) in self.materials.iter().enumerate() {
             if !crate::names::is_valid_name(&m.name)
@@ -367,6 +385,9 @@ impl LandscapeConfig {
             }
             for (class, t) in &m.class {
                 t.check(&format!("material {} class.{class}", m.name))?;
+            }
+            for (biome, t) in &m.biome {
+                t.check(&format!("material {} biome.{biome}", m.name))?;
             }
             if !(m.spread.is_finite() && (0.0..=1.0).contains(&m.spread)) {
                 return bad(format!("material {}: spread must lie in [0, 1]", m.name));
@@ -411,6 +432,29 @@ impl LandscapeConfig {
                 };
                 return Err(LandscapeError::Invalid(format!(
                     "{what} {name} names unknown class `{c}` ({known})"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks that every `biome.<name>` term of the materials and species names one of the
+    /// world's biomes `names`; the error names the material (or species) and the biome.
+    pub fn check_biomes(&self, names: &[String]) -> Result<(), LandscapeError> {
+        let terms = self
+            .materials
+            .iter()
+            .map(|m| ("material", &m.name, &m.biome))
+            .chain(self.species.iter().map(|s| ("species", &s.name, &s.biome)));
+        for (what, name, biome) in terms {
+            if let Some(b) = biome.keys().find(|b| !names.contains(b)) {
+                let known = if names.is_empty() {
+                    "the world has no biomes".to_string()
+                } else {
+                    format!("its biomes are {}", names.join(", "))
+                };
+                return Err(LandscapeError::Invalid(format!(
+                    "{what} {name} names unknown biome `{b}` ({known})"
                 )));
             }
         }
@@ -482,6 +526,7 @@ mod tests {
             northness: None,
             wetness: None,
             class: BTreeMap::new(),
+            biome: BTreeMap::new(),
         };
         assert_eq!(
             format!("{s:?}"),

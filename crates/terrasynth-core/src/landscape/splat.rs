@@ -25,7 +25,8 @@ pub struct LayerInputs<'a> {
     /// Vegetation densities in species order.
     pub vegetation: &'a [Array2<f32>],
     /// Land-cover class weights by class name (`class.<name>` terms; empty for a world without
-    /// classes).
+    /// classes), and painted biome weights under `biome.<name>` (`biome.<name>` terms,
+    /// [`super::vegetation::biome_key`]).
     pub classes: &'a [(String, Array2<f32>)],
     /// Global pixel coordinates `(row, col)` of element `(0, 0)`.
     pub origin: (i64, i64),
@@ -60,6 +61,7 @@ fn raw_weight(
     w: f32,
     veg: &dyn Fn(usize) -> f32,
     class: &dyn Fn(&str) -> f32,
+    biome: &dyn Fn(&str) -> f32,
 ) -> f32 {
     let mut out = 1.0f32;
     for (t, x) in [
@@ -84,6 +86,9 @@ fn raw_weight(
     for (name, t) in &m.class {
         out *= t.weight(class(name));
     }
+    for (name, t) in &m.biome {
+        out *= t.weight(biome(name));
+    }
     out
 }
 
@@ -105,6 +110,12 @@ pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Arr
                     .find(|(n, _)| n == name)
                     .map_or(0.0, |(_, a)| a[[r, c]])
             };
+            let biome = |name: &str| {
+                inp.classes
+                    .iter()
+                    .find(|(n, _)| n.strip_prefix(super::vegetation::BIOME_PREFIX) == Some(name))
+                    .map_or(0.0, |(_, a)| a[[r, c]])
+            };
             let mut total = 0.0f32;
             for (k, m) in cfg.materials.iter().enumerate() {
                 let mut v = raw_weight(
@@ -117,6 +128,7 @@ pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Arr
                     inp.wetness[[r, c]],
                     &veg,
                     &class,
+                    &biome,
                 );
                 if v > 0.0 && m.spread > 0.0 {
                     let seed = mix64(0x5b1a7 ^ k as u64);

@@ -31,17 +31,32 @@ pub fn suitability(sp: &Species, elevation: f32, slope: f32, northness: f32, wet
     w
 }
 
-/// The `class.<name>` factor of `sp` per pixel: the product of its class terms' weight curves
-/// over the class weights `classes` (by name; a class absent from them weighs 0). `None` when
-/// `sp` has no class terms or no class weights are given (dictionary builds: no classes).
+/// The key of biome `name`'s weights among the class weights a world gives ([`class_factor`],
+/// the splat's inputs): `biome.<name>` (no class name holds a `.`).
+pub fn biome_key(name: &str) -> String {
+    format!("{BIOME_PREFIX}{name}")
+}
+
+/// The prefix of [`biome_key`].
+pub const BIOME_PREFIX: &str = "biome.";
+
+/// The `class.<name>` and `biome.<name>` factor of `sp` per pixel: the product of its class and
+/// biome terms' weight curves over the weights `classes` (by name, biomes under
+/// [`biome_key`]; a class or biome absent from them weighs 0). `None` when `sp` has no such
+/// terms or no weights are given (dictionary builds: no classes).
 pub fn class_factor(sp: &Species, classes: &[(String, Array2<f32>)]) -> Option<Array2<f32>> {
     let first = classes.first()?;
-    if sp.class.is_empty() {
+    if sp.class.is_empty() && sp.biome.is_empty() {
         return None;
     }
     let mut out = Array2::from_elem(first.1.dim(), 1.0f32);
-    for (name, t) in &sp.class {
-        match classes.iter().find(|(n, _)| n == name) {
+    let terms = sp
+        .class
+        .iter()
+        .map(|(n, t)| (n.clone(), t))
+        .chain(sp.biome.iter().map(|(n, t)| (biome_key(n), t)));
+    for (name, t) in terms {
+        match classes.iter().find(|(n, _)| *n == name) {
             Some((_, w)) => ndarray::Zip::from(&mut out)
                 .and(w)
                 .for_each(|o, &x| *o *= t.weight(x)),
@@ -273,6 +288,7 @@ mod tests {
             }),
             wetness: None,
             class: Default::default(),
+            biome: Default::default(),
         }
     }
 
