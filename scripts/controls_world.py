@@ -4,7 +4,10 @@
 Writes, under OUT (default target/controls):
   landcover.tif  a class raster on the default base's grid (float32 GeoTIFF, deflate): 1 steppe
                  below 1,500 m, 2 forest to 2,800 m, 3 alpine meadow to 3,600 m, 4 rock above;
-  controls.toml  the world `controls`: the default world's base and dictionaries, a sea at
+  alpine.tif, steppe.tif  biome weights: alpine rising from 0 at 1,200 m to 1 at 2,000 m, steppe
+                 the rest;
+  karatau.tif    the steppe biome's exemplar, the low-relief crop 256,0,512,512 of the base;
+  controls.toml  the world `controls`: the default world's base, two painted biomes, a sea at
                  SEA_LEVEL_M (default 900 m: the Chui valley below Bishkek and the Syr Darya
                  lowlands), lakes on, the class raster with a legend and 1 km smoothing, and
                  materials and species that take `class.<name>` ranges;
@@ -109,17 +112,22 @@ fill_m = 0.0
 center = [74.55, 42.55]
 sea_level_m = {sea}
 
-[[dictionaries]]
-zooms = "9-15"
+# Painted biomes: the default dictionary on the ranges, a Karatau/steppe one on the plains.
+[[biomes]]
+name = "alpine"
+weight = "alpine.tif"
+[biomes.dictionary]
 exemplars = ["embedded:tienshan"]
 atoms = 256
 patch = 16
 stride = 8
 seed = 1
 
-[[dictionaries]]
-zooms = "16"
-exemplars = ["embedded:carrizo"]
+[[biomes]]
+name = "steppe"
+weight = "steppe.tif"
+[biomes.dictionary]
+exemplars = ["karatau.tif"]
 atoms = 256
 patch = 16
 stride = 8
@@ -141,6 +149,7 @@ slope = 0.1
 [landscape]
 [[landscape.materials]]
 name = "steppe"
+biome.steppe = {{ min = 0.5, max = 1.0 }}
 colour = [176, 160, 110]
 class.steppe = {{ min = 0.5, max = 1.0 }}
 [[landscape.materials]]
@@ -186,12 +195,19 @@ def main():
     tags, elevation = read_tiff(whole)
     classes = [land_cover(v) for v in elevation]
     write_tiff(os.path.join(args.out, "landcover.tif"), tags, classes)
+    alpine = [min(1.0, max(0.0, (v - 1200.0) / 800.0)) for v in elevation]
+    write_tiff(os.path.join(args.out, "alpine.tif"), tags, alpine)
+    write_tiff(os.path.join(args.out, "steppe.tif"), tags, [1.0 - a for a in alpine])
+    subprocess.run([args.bin, "crop", "--input", BASE, "--window", "256,0,512,512",
+                    "--output", os.path.join(args.out, "karatau.tif")], check=True,
+                   stdout=subprocess.DEVNULL)
     counts = {c: classes.count(c) for c in (1.0, 2.0, 3.0, 4.0)}
     with open(os.path.join(args.out, "controls.toml"), "w") as f:
         f.write(WORLD.format(sea=args.sea_level_m))
     with open(os.path.join(args.out, "config.toml"), "w") as f:
         f.write(CONFIG)
-    print(f"wrote {args.out}/controls.toml, config.toml and landcover.tif "
+    print(f"wrote {args.out}/controls.toml, config.toml, landcover.tif, alpine.tif, steppe.tif "
+          f"and karatau.tif "
           f"(cells per class: {counts})")
 
 
