@@ -625,22 +625,7 @@ impl Catalogue {
         let raster = if id == base {
             base_raster
         } else {
-            let unknown =
-                || ServiceError::Invalid(format!("{what}.exemplar: unknown exemplar `{id}`"));
-            let payload = match self.store.get_object(ObjectKind::Exemplar, id) {
-                Ok(p) => p.ok_or_else(unknown)?,
-                Err(StoreError::BadName(_)) => return Err(unknown()),
-                Err(e) => return Err(e.into()),
-            };
-            other = exemplar::decode(&payload)?.1;
-            if other.dim() != base_raster.dim() || other.georef != base_raster.georef {
-                let ((r, c), (br, bc)) = (other.dim(), base_raster.dim());
-                return Err(ServiceError::Invalid(format!(
-                    "{what}.exemplar `{id}` is {c}×{r} at {:?}: the raster must lie on the \
-                     base's grid, {bc}×{br} at {:?}",
-                    other.georef, base_raster.georef
-                )));
-            }
+            other = self.exemplar_on_base_grid(what, id, base_raster)?;
             &other
         };
         let data = raster.layer(layer).cloned().ok_or_else(|| {
@@ -650,6 +635,32 @@ impl Catalogue {
             ))
         })?;
         Ok(Grid::new(data, raster.georef))
+    }
+
+    /// Exemplar `id`, decoded, which must lie on the base's grid (`base_raster`'s size and
+    /// georeference); errors name `what` (`classes`, `biomes[0]`, ...).
+    fn exemplar_on_base_grid(
+        &self,
+        what: &str,
+        id: &str,
+        base_raster: &LayeredRaster,
+    ) -> Result<LayeredRaster, ServiceError> {
+        let unknown = || ServiceError::Invalid(format!("{what}.exemplar: unknown exemplar `{id}`"));
+        let payload = match self.store.get_object(ObjectKind::Exemplar, id) {
+            Ok(p) => p.ok_or_else(unknown)?,
+            Err(StoreError::BadName(_)) => return Err(unknown()),
+            Err(e) => return Err(e.into()),
+        };
+        let other = exemplar::decode(&payload)?.1;
+        if other.dim() != base_raster.dim() || other.georef != base_raster.georef {
+            let ((r, c), (br, bc)) = (other.dim(), base_raster.dim());
+            return Err(ServiceError::Invalid(format!(
+                "{what}.exemplar `{id}` is {c}×{r} at {:?}: the raster must lie on the base's \
+                 grid, {bc}×{br} at {:?}",
+                other.georef, base_raster.georef
+            )));
+        }
+        Ok(other)
     }
 
     /// The raster of a world's classes: layer [`WorldClassesRef::layer`] of exemplar
@@ -666,22 +677,7 @@ impl Catalogue {
         let raster = if id == base {
             base_raster
         } else {
-            let unknown =
-                || ServiceError::Invalid(format!("classes.exemplar: unknown exemplar `{id}`"));
-            let payload = match self.store.get_object(ObjectKind::Exemplar, id) {
-                Ok(p) => p.ok_or_else(unknown)?,
-                Err(StoreError::BadName(_)) => return Err(unknown()),
-                Err(e) => return Err(e.into()),
-            };
-            other = exemplar::decode(&payload)?.1;
-            if other.dim() != base_raster.dim() || other.georef != base_raster.georef {
-                let ((r, c), (br, bc)) = (other.dim(), base_raster.dim());
-                return Err(ServiceError::Invalid(format!(
-                    "classes.exemplar `{id}` is {c}×{r} at {:?}: the class raster must lie on the \
-                     base's grid, {bc}×{br} at {:?}",
-                    other.georef, base_raster.georef
-                )));
-            }
+            other = self.exemplar_on_base_grid("classes", id, base_raster)?;
             &other
         };
         let layer = c.layer();
