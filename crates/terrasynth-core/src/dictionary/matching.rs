@@ -416,6 +416,8 @@ fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], isa: Isa) {
 pub struct MatchScratch {
     dots: Vec<f32>,
     class: Vec<f32>,
+    /// The seeds of [`Matcher::best_k`].
+    seeds: Vec<usize>,
 }
 
 impl Matcher {
@@ -552,6 +554,104 @@ impl Matcher {
         (best, dots[best])
     }
 
+    /// The `k` best atoms for `q`, best first: full score descending, ties by lower index (the
+    /// order [`best_match`](Matcher::best_match) uses, so `out[0]` is its atom). Atoms whose
+    /// score is NaN are never ranked. Identical to [`best_k_naive`]; pruned like
+    /// [`Matcher::best_match`], against the `k`-th best score so far.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    pub fn best_k(&self, q: &Query, scratch: &mut MatchScratch, k: usize, out: &mut Vec<Ranked>) {
+        out.clear();
+        if k == 0 {
+            return;
+        }
+        let n = self.dict.n_atoms;
+        let dots = &mut scratch.dots;
+        dots.clear();
+        dots.resize(self.n_pad, 0.0);
+        if q.elevation.len() * self.n_pad == self.lo_t.len() {
+            all_dots(&q.elevation, &self.lo_t, self.n_pad, dots, self.isa);
+        }
+        dots.truncate(n);
+        let s = self.sigmas(q);
+        let w = &self.weights;
+        let rest = w.rest() + PRUNE_SLACK;
+        let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
+        // Seeds: the `k` atoms with the largest dot products (ties: lower index), scored first
+        // so that the `k`-th best score, the pruning floor, starts high.
+        let seeds = &mut scratch.seeds;
+        seeds.clear();
+        for (i, &d) in dots.iter().enumerate() {
+            if seeds.len() == k && !(d > dots[seeds[k - 1]]) {
+                continue;
+            }
+            let at = seeds
+                .iter()
+                .position(|&o| d > dots[o])
+                .unwrap_or(seeds.len());
+            seeds.insert(at, i);
+            seeds.truncate(k);
+        }
+        for &i in seeds.iter() {
+            let score = combine(
+                w,
+                &self.dict,
+                &self.prepared,
+                q,
+                s,
+                i,
+                dots[i],
+                &mut scratch.class,
+            );
+            insert_ranked(
+                out,
+                k,
+                Ranked {
+                    atom: i,
+                    dot: dots[i],
+                    score,
+                },
+            );
+        }
+        for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
+            let floor = if out.len() == k {
+                out[k - 1].score
+            } else {
+                f32::NEG_INFINITY
+            };
+            if !chunk
+                .iter()
+                .fold(false, |any, &d| any | !(bound(d) < floor))
+            {
+                continue;
+            }
+            for (j, &dot_i) in chunk.iter().enumerate() {
+                let i = c * SCAN_CHUNK + j;
+                if (out.len() == k && bound(dot_i) < out[k - 1].score) || seeds.contains(&i) {
+                    continue;
+                }
+                let score = combine(
+                    w,
+                    &self.dict,
+                    &self.prepared,
+                    q,
+                    s,
+                    i,
+                    dot_i,
+                    &mut scratch.class,
+                );
+                insert_ranked(
+                    out,
+                    k,
+                    Ranked {
+                        atom: i,
+                        dot: dot_i,
+                        score,
+                    },
+                );
+            }
+        }
+    }
+
     /// The full score of atom `i` for `q` (the reference formula).
     pub fn score(&self, q: &Query, i: usize) -> f32 {
         let elev_dot = dot(&q.elevation, self.dict.lo_atom(i));
@@ -566,6 +666,60 @@ impl Matcher {
             &mut Vec::new(),
         )
     }
+}
+
+/// One ranked atom of [`Matcher::best_k`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ranked {
+    /// Atom index.
+    pub atom: usize,
+    /// Its elevation dot product `P_h · D_h,k`.
+    pub dot: f32,
+    /// Its full score.
+    pub score: f32,
+}
+
+/// Whether `a` ranks before `b`: higher score, then lower index.
+fn ranks_before(a: &Ranked, b: &Ranked) -> bool {
+    a.score > b.score || (a.score == b.score && a.atom < b.atom)
+}
+
+/// Inserts `r` into the ranked list `out` (best first), keeping at most `k` entries; a NaN score
+/// is not ranked.
+fn insert_ranked(out: &mut Vec<Ranked>, k: usize, r: Ranked) {
+    if r.score.is_nan() {
+        return;
+    }
+    let at = out
+        .iter()
+        .position(|o| ranks_before(&r, o))
+        .unwrap_or(out.len());
+    if at < k {
+        out.insert(at, r);
+        out.truncate(k);
+    }
+}
+
+/// Reference for [`Matcher::best_k`]: scores every atom with the plain formula, sorts by score
+/// (descending, ties by index) and keeps the first `k`.
+pub fn best_k_naive(matcher: &Matcher, q: &Query, k: usize) -> Vec<Ranked> {
+    let dict = matcher.dictionary();
+    let mut all: Vec<Ranked> = (0..dict.n_atoms)
+        .map(|i| Ranked {
+            atom: i,
+            dot: dot(&q.elevation, dict.lo_atom(i)),
+            score: matcher.score(q, i),
+        })
+        .filter(|r| !r.score.is_nan())
+        .collect();
+    all.sort_by(|a, b| {
+        b.score
+            .partial_cmp(&a.score)
+            .unwrap_or(std::cmp::Ordering::Equal)
+            .then_with(|| a.atom.cmp(&b.atom))
+    });
+    all.truncate(k);
+    all
 }
 
 /// Reference implementation: scores every atom with the plain formula and returns the first

@@ -37,8 +37,11 @@ use super::kernel::{
 pub use super::levers::{Levers, MAX_AMPLIFY_SPARSITY};
 use crate::analysis::breach::{breach_margin, breach_pits_with, BreachRule, RISE_REACH};
 use crate::dictionary::features::{centre_normalise, patch_mean_slope};
-use crate::dictionary::matching::{unit_centred, MatchScratch, MatchWeights, Matcher, Query};
+use crate::dictionary::matching::{
+    unit_centred, MatchScratch, MatchWeights, Matcher, Query, Ranked,
+};
 use crate::dictionary::omp::{Omp, OmpScratch};
+use crate::dictionary::rng::hash2;
 use crate::dictionary::{Dictionary, LayerKind};
 use crate::raster::boxfilter::box2;
 
@@ -482,6 +485,8 @@ impl Amplifier {
         let pw = parent.window;
         let roughness = self.levers.roughness;
         let octave_match = self.levers.octave_match;
+        let diversity = self.levers.diversity.max(1) as usize;
+        let diversity_tol = self.levers.diversity_tol;
         let floor = self.levers.floor_m * (parent_cell_m / 2000.0).max(0.0).powf(0.7);
         (0..nj * ni)
             .into_par_iter()
@@ -492,9 +497,10 @@ impl Amplifier {
                         vec![0.0f32; lo * lo],
                         Query::default(),
                         OctaveScratch::default(),
+                        Vec::<Ranked>::new(),
                     )
                 },
-                |((scratch, omp_scratch), raw, query, octave), n| {
+                |((scratch, omp_scratch), raw, query, octave, ranked), n| {
                     let i = lr.i0 + (n % ni) as i64;
                     let j = lr.j0 + (n / ni) as i64;
                     let pc0 = (i * s / 2 - q - pw.col0) as usize;
@@ -525,7 +531,13 @@ impl Amplifier {
                             None => query.layers.push(Vec::new()),
                         }
                     }
-                    let (atom, dot) = self.matcher.best_match(query, scratch);
+                    let (atom, dot) = if diversity > 1 {
+                        self.matcher.best_k(query, scratch, diversity, ranked);
+                        choose_diverse(ranked, diversity_tol, i, j)
+                            .unwrap_or_else(|| self.matcher.best_match(query, scratch))
+                    } else {
+                        self.matcher.best_match(query, scratch)
+                    };
                     let detail_coef = if roughness > 0.0 {
                         let rough = if octave_match > 0.0 {
                             octave_match * self.detail_per_octave[atom]
@@ -1046,6 +1058,23 @@ fn upsample_row<const N: usize>(
     }
 }
 
+/// Seed of the hash that picks a primitive's atom among its candidates ([`Levers::diversity`]).
+const DIVERSITY_SEED: u64 = 0x6469_7665_7273_6531;
+
+/// The atom and elevation dot product that lattice point `(i, j)` takes among the ranked
+/// candidates `ranked` (best first): those scoring within `tol` of the best, picked by a hash of
+/// the point. `None` when nothing is ranked.
+fn choose_diverse(ranked: &[Ranked], tol: f32, i: i64, j: i64) -> Option<(usize, f32)> {
+    let best = ranked.first()?;
+    let m = ranked
+        .iter()
+        .take_while(|r| r.score >= best.score - tol)
+        .count()
+        .max(1);
+    let pick = &ranked[(hash2(DIVERSITY_SEED, i, j) % m as u64) as usize];
+    Some((pick.atom, pick.dot))
+}
+
 /// Reference implementation of [`upsample_row`]: every column's taps summed in a plain loop.
 #[cfg(test)]
 fn upsample_row_naive(kernel: &UpKernel, src: &[f32], src_col0: i64, col0: i64, out: &mut [f32]) {
@@ -1147,6 +1176,43 @@ fn correct_n<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn ranked(scores: &[f32]) -> Vec<Ranked> {
+        scores
+            .iter()
+            .enumerate()
+            .map(|(k, &score)| Ranked {
+                atom: 10 + k,
+                dot: k as f32 / 10.0,
+                score,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn diverse_choice_spreads_over_the_candidates_within_the_tolerance() {
+        let list = ranked(&[0.9, 0.89, 0.88, 0.5]);
+        assert_eq!(choose_diverse(&[], f32::INFINITY, 0, 0), None);
+        let mut seen = [0usize; 4];
+        for j in -20..20 {
+            for i in -20..20 {
+                let (atom, dot) = choose_diverse(&list, 0.05, i, j).unwrap();
+                // Only the three candidates within 0.05 of the best, with their own dot.
+                assert!((10..13).contains(&atom), "{atom}");
+                assert_eq!(dot, (atom - 10) as f32 / 10.0);
+                seen[atom - 10] += 1;
+                // A pure function of the lattice point.
+                assert_eq!(choose_diverse(&list, 0.05, i, j), Some((atom, dot)));
+            }
+        }
+        // 1,600 points over three candidates: each taken often (about 533 times).
+        assert!(seen[..3].iter().all(|&n| n > 400), "{seen:?}");
+        // Tolerance 0: the best alone; infinite: every ranked atom.
+        assert!((-5..5).all(|i| choose_diverse(&list, 0.0, i, 3) == Some((10, 0.0))));
+        assert!(
+            (-50..50).any(|i| choose_diverse(&list, f32::INFINITY, i, 3).map(|p| p.0) == Some(13))
+        );
+    }
 
     #[test]
     fn the_stripe_cap_removes_and_caps_row_and_column_means() {

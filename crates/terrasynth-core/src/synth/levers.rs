@@ -66,12 +66,22 @@ pub struct Levers {
     /// dictionary's own `sparsity` (1 unless it was learned for more); 1: one atom (the
     /// amplifier before sparse codes, bit for bit).
     pub sparsity: u32,
+    /// Atoms a primitive chooses among (1: the best match alone): the matcher ranks the best
+    /// `diversity` atoms and each primitive takes one of those scoring within
+    /// [`Levers::diversity_tol`] of the best, picked by a hash of its global lattice point, so
+    /// that neighbouring primitives on a uniform slope do not repeat one atom along the
+    /// lattice's rows and columns. A pure function of the lattice point: windows stay invariant.
+    pub diversity: u32,
+    /// Score tolerance of [`Levers::diversity`]: only atoms whose full score is at least the
+    /// best's minus this are candidates.
+    pub diversity_tol: f32,
 }
 
 impl Default for Levers {
     /// The served amplifier: detail amplitude from the parent's finest octave (0.58) over a floor
     /// of 3 m at 1 km cells; Kaiser-6 correction in two passes; pits breached within 16 cells
-    /// where the terrain rises at 5 % or more around them, within 4 cells on flats.
+    /// where the terrain rises at 5 % or more around them, within 4 cells on flats; each
+    /// primitive's atom picked among the 8 best matches by a hash of its lattice point.
     fn default() -> Self {
         Levers {
             consistent_split: false,
@@ -88,6 +98,8 @@ impl Default for Levers {
             slope_mod: false,
             stripe_cap: f32::INFINITY,
             sparsity: 0,
+            diversity: 8,
+            diversity_tol: f32::INFINITY,
         }
     }
 }
@@ -112,6 +124,8 @@ impl Levers {
             slope_mod: false,
             stripe_cap: f32::INFINITY,
             sparsity: 0,
+            diversity: 1,
+            diversity_tol: f32::INFINITY,
         }
     }
 
@@ -119,7 +133,8 @@ impl Levers {
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
-    /// pits), `floor=M`, `octave=G`, `stripes=F|off` (stripe cap), `sparsity=S` (0: the dictionary's).
+    /// pits), `floor=M`, `octave=G`, `stripes=F|off` (stripe cap), `sparsity=S` (0: the dictionary's), `diverse=K`
+    /// (atoms a primitive chooses among), `within=T` (their score tolerance).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -165,6 +180,8 @@ impl Levers {
                 }
                 "flat" => l.breach_flat = num(0.0, 32.0)? as u32,
                 "steep" => l.steep_slope = num(0.0, 10.0)? as f32,
+                "diverse" => l.diversity = num(1.0, 64.0)? as u32,
+                "within" => l.diversity_tol = num(0.0, 1.0)? as f32,
                 "sparsity" => l.sparsity = num(0.0, MAX_AMPLIFY_SPARSITY as f64)? as u32,
                 "kernel" => {
                     l.kernel = match value {

@@ -4,7 +4,9 @@
 use std::sync::Arc;
 
 use proptest::prelude::*;
-use terrasynth_core::dictionary::matching::{best_match_naive, unit_centred, MatchScratch, Query};
+use terrasynth_core::dictionary::matching::{
+    best_k_naive, best_match_naive, unit_centred, MatchScratch, Query, Ranked,
+};
 use terrasynth_core::dictionary::{
     AtomSource, Dictionary, DictionaryParams, LayerInfo, LayerKind, Learning, MatchWeights, Matcher,
 };
@@ -151,6 +153,45 @@ proptest! {
         let naive = best_match_naive(&matcher, &q);
         prop_assert_eq!(fast.0, naive.0);
         prop_assert_eq!(fast.1.to_bits(), naive.1.to_bits());
+    }
+
+    #[test]
+    fn pruned_top_k_equals_naive_ranking(
+        n in 1usize..80,
+        k in 1usize..10,
+        dups in 0usize..4,
+        values in prop::collection::vec(-5.0f32..5.0, 4..40),
+        qv in prop::collection::vec(-5.0f32..5.0, 2..20),
+        alt in -100.0f32..3000.0,
+        slope in 0.0f32..1.0,
+        we in 0.0f32..1.0, wa in 0.0f32..1.0, ws in 0.0f32..1.0, wl in 0.0f32..1.0,
+        with_layers: bool,
+        copy_atom in prop::option::of(0usize..80),
+    ) {
+        let dict = random_dictionary(n, &values, dups.min(n.saturating_sub(1)));
+        let weights = MatchWeights {
+            elevation: we + 1e-3,
+            altitude: wa,
+            slope: ws,
+            layers: vec![("log_area".into(), wl)],
+        };
+        let matcher = Matcher::new(Arc::new(dict.clone()), &weights).unwrap();
+        let mut q = query_from(&qv, alt, slope, with_layers);
+        if let Some(i) = copy_atom {
+            q.elevation = dict.lo_atom(i % n).to_vec();
+        }
+        let mut scratch = MatchScratch::default();
+        let mut fast: Vec<Ranked> = Vec::new();
+        matcher.best_k(&q, &mut scratch, k, &mut fast);
+        let naive = best_k_naive(&matcher, &q, k);
+        prop_assert_eq!(fast.len(), k.min(n));
+        let bits = |v: &[Ranked]| -> Vec<(usize, u32, u32)> {
+            v.iter().map(|r| (r.atom, r.dot.to_bits(), r.score.to_bits())).collect()
+        };
+        prop_assert_eq!(bits(&fast), bits(&naive));
+        // The first ranked atom is the single best match.
+        let best = matcher.best_match(&q, &mut scratch);
+        prop_assert_eq!(fast[0].atom, best.0);
     }
 }
 
