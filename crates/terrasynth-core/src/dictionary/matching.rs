@@ -20,6 +20,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::atoms::{Dictionary, LayerKind};
+use super::rng::hash2;
 use crate::simd::Isa;
 
 /// Slack added to the pruning bound so that float rounding of the full score can never make a
@@ -652,6 +653,33 @@ impl Matcher {
         }
     }
 
+    /// The atom and elevation dot product lattice point `(i, j)` takes among its `k` best matches
+    /// within score tolerance `tol` (`Levers::diversity`): [`choose_diverse`] over
+    /// [`Matcher::best_k`]. With no tolerance and at least `k` atoms, the pick is the `r`-th best for
+    /// `r = hash(i, j) mod k` (NaN scores aside), so only the best `r + 1` are ranked (the best alone: the plain
+    /// [`Matcher::best_match`]) — the same atom, for less work.
+    pub fn diverse_match(
+        &self,
+        q: &Query,
+        (scratch, ranked): (&mut MatchScratch, &mut Vec<Ranked>),
+        (k, tol): (usize, f32),
+        i: i64,
+        j: i64,
+    ) -> (usize, f32) {
+        if tol == f32::INFINITY && self.dictionary().n_atoms >= k {
+            let r = (hash2(DIVERSITY_SEED, i, j) % k as u64) as usize;
+            if r == 0 {
+                return self.best_match(q, scratch);
+            }
+            self.best_k(q, scratch, r + 1, ranked);
+            if ranked.len() == r + 1 {
+                return (ranked[r].atom, ranked[r].dot);
+            }
+        }
+        self.best_k(q, scratch, k, ranked);
+        choose_diverse(ranked, tol, i, j).unwrap_or_else(|| self.best_match(q, scratch))
+    }
+
     /// The full score of atom `i` for `q` (the reference formula).
     pub fn score(&self, q: &Query, i: usize) -> f32 {
         let elev_dot = dot(&q.elevation, self.dict.lo_atom(i));
@@ -677,6 +705,23 @@ pub struct Ranked {
     pub dot: f32,
     /// Its full score.
     pub score: f32,
+}
+
+/// Seed of the hash that picks a primitive's atom among its candidates (`Levers::diversity`).
+const DIVERSITY_SEED: u64 = 0x6469_7665_7273_6531;
+
+/// The atom and elevation dot product that lattice point `(i, j)` takes among the ranked
+/// candidates `ranked` (best first): those scoring within `tol` of the best, picked by a hash of
+/// the point. `None` when nothing is ranked.
+pub fn choose_diverse(ranked: &[Ranked], tol: f32, i: i64, j: i64) -> Option<(usize, f32)> {
+    let best = ranked.first()?;
+    let m = ranked
+        .iter()
+        .take_while(|r| r.score >= best.score - tol)
+        .count()
+        .max(1);
+    let pick = &ranked[(hash2(DIVERSITY_SEED, i, j) % m as u64) as usize];
+    Some((pick.atom, pick.dot))
 }
 
 /// Whether `a` ranks before `b`: higher score, then lower index.

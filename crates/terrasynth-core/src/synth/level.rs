@@ -41,7 +41,6 @@ use crate::dictionary::matching::{
     unit_centred, MatchScratch, MatchWeights, Matcher, Query, Ranked,
 };
 use crate::dictionary::omp::{Omp, OmpScratch};
-use crate::dictionary::rng::hash2;
 use crate::dictionary::{Dictionary, LayerKind};
 use crate::raster::boxfilter::box2;
 
@@ -532,9 +531,13 @@ impl Amplifier {
                         }
                     }
                     let (atom, dot) = if diversity > 1 {
-                        self.matcher.best_k(query, scratch, diversity, ranked);
-                        choose_diverse(ranked, diversity_tol, i, j)
-                            .unwrap_or_else(|| self.matcher.best_match(query, scratch))
+                        self.matcher.diverse_match(
+                            query,
+                            (scratch, ranked),
+                            (diversity, diversity_tol),
+                            i,
+                            j,
+                        )
                     } else {
                         self.matcher.best_match(query, scratch)
                     };
@@ -1058,23 +1061,6 @@ fn upsample_row<const N: usize>(
     }
 }
 
-/// Seed of the hash that picks a primitive's atom among its candidates ([`Levers::diversity`]).
-const DIVERSITY_SEED: u64 = 0x6469_7665_7273_6531;
-
-/// The atom and elevation dot product that lattice point `(i, j)` takes among the ranked
-/// candidates `ranked` (best first): those scoring within `tol` of the best, picked by a hash of
-/// the point. `None` when nothing is ranked.
-fn choose_diverse(ranked: &[Ranked], tol: f32, i: i64, j: i64) -> Option<(usize, f32)> {
-    let best = ranked.first()?;
-    let m = ranked
-        .iter()
-        .take_while(|r| r.score >= best.score - tol)
-        .count()
-        .max(1);
-    let pick = &ranked[(hash2(DIVERSITY_SEED, i, j) % m as u64) as usize];
-    Some((pick.atom, pick.dot))
-}
-
 /// Reference implementation of [`upsample_row`]: every column's taps summed in a plain loop.
 #[cfg(test)]
 fn upsample_row_naive(kernel: &UpKernel, src: &[f32], src_col0: i64, col0: i64, out: &mut [f32]) {
@@ -1176,43 +1162,6 @@ fn correct_n<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn ranked(scores: &[f32]) -> Vec<Ranked> {
-        scores
-            .iter()
-            .enumerate()
-            .map(|(k, &score)| Ranked {
-                atom: 10 + k,
-                dot: k as f32 / 10.0,
-                score,
-            })
-            .collect()
-    }
-
-    #[test]
-    fn diverse_choice_spreads_over_the_candidates_within_the_tolerance() {
-        let list = ranked(&[0.9, 0.89, 0.88, 0.5]);
-        assert_eq!(choose_diverse(&[], f32::INFINITY, 0, 0), None);
-        let mut seen = [0usize; 4];
-        for j in -20..20 {
-            for i in -20..20 {
-                let (atom, dot) = choose_diverse(&list, 0.05, i, j).unwrap();
-                // Only the three candidates within 0.05 of the best, with their own dot.
-                assert!((10..13).contains(&atom), "{atom}");
-                assert_eq!(dot, (atom - 10) as f32 / 10.0);
-                seen[atom - 10] += 1;
-                // A pure function of the lattice point.
-                assert_eq!(choose_diverse(&list, 0.05, i, j), Some((atom, dot)));
-            }
-        }
-        // 1,600 points over three candidates: each taken often (about 533 times).
-        assert!(seen[..3].iter().all(|&n| n > 400), "{seen:?}");
-        // Tolerance 0: the best alone; infinite: every ranked atom.
-        assert!((-5..5).all(|i| choose_diverse(&list, 0.0, i, 3) == Some((10, 0.0))));
-        assert!(
-            (-50..50).any(|i| choose_diverse(&list, f32::INFINITY, i, 3).map(|p| p.0) == Some(13))
-        );
-    }
 
     #[test]
     fn the_stripe_cap_removes_and_caps_row_and_column_means() {

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use proptest::prelude::*;
 use terrasynth_core::dictionary::matching::{
-    best_k_naive, best_match_naive, unit_centred, MatchScratch, Query, Ranked,
+    best_k_naive, best_match_naive, choose_diverse, unit_centred, MatchScratch, Query, Ranked,
 };
 use terrasynth_core::dictionary::{
     AtomSource, Dictionary, DictionaryParams, LayerInfo, LayerKind, Learning, MatchWeights, Matcher,
@@ -193,6 +193,41 @@ proptest! {
         let best = matcher.best_match(&q, &mut scratch);
         prop_assert_eq!(fast[0].atom, best.0);
     }
+
+    /// The diverse pick (shortcut: only the best `r + 1` ranked) takes the atom that
+    /// `choose_diverse` takes over the naive ranking, at every lattice point.
+    #[test]
+    fn diverse_match_equals_the_choice_over_the_naive_ranking(
+        n in 1usize..60,
+        k in 2usize..10,
+        values in prop::collection::vec(-5.0f32..5.0, 4..40),
+        qv in prop::collection::vec(-5.0f32..5.0, 2..20),
+        alt in -100.0f32..3000.0,
+        slope in 0.0f32..1.0,
+        ws in 0.0f32..1.0, wl in 0.0f32..1.0,
+        with_layers: bool,
+        tol in prop::option::of(0.0f32..0.2),
+        i0 in -1000i64..1000, j0 in -1000i64..1000,
+    ) {
+        let dict = random_dictionary(n, &values, 0);
+        let weights = MatchWeights {
+            elevation: 1.0,
+            altitude: 0.2,
+            slope: ws,
+            layers: vec![("log_area".into(), wl)],
+        };
+        let matcher = Matcher::new(Arc::new(dict), &weights).unwrap();
+        let q = query_from(&qv, alt, slope, with_layers);
+        let tol = tol.unwrap_or(f32::INFINITY);
+        let naive = best_k_naive(&matcher, &q, k);
+        let mut scratch = MatchScratch::default();
+        let mut ranked: Vec<Ranked> = Vec::new();
+        for (i, j) in (0..12).map(|d| (i0 + d, j0 + 3 * d)) {
+            let fast = matcher.diverse_match(&q, (&mut scratch, &mut ranked), (k, tol), i, j);
+            let want = choose_diverse(&naive, tol, i, j).unwrap();
+            prop_assert_eq!((fast.0, fast.1.to_bits()), (want.0, want.1.to_bits()));
+        }
+    }
 }
 
 #[test]
@@ -272,4 +307,39 @@ fn invalid_weights_are_rejected() {
         slope: f32::NAN,
         ..MatchWeights::default()
     }));
+}
+
+fn ranked(scores: &[f32]) -> Vec<Ranked> {
+    scores
+        .iter()
+        .enumerate()
+        .map(|(k, &score)| Ranked {
+            atom: 10 + k,
+            dot: k as f32 / 10.0,
+            score,
+        })
+        .collect()
+}
+
+#[test]
+fn diverse_choice_spreads_over_the_candidates_within_the_tolerance() {
+    let list = ranked(&[0.9, 0.89, 0.88, 0.5]);
+    assert_eq!(choose_diverse(&[], f32::INFINITY, 0, 0), None);
+    let mut seen = [0usize; 4];
+    for j in -20..20 {
+        for i in -20..20 {
+            let (atom, dot) = choose_diverse(&list, 0.05, i, j).unwrap();
+            // Only the three candidates within 0.05 of the best, with their own dot.
+            assert!((10..13).contains(&atom), "{atom}");
+            assert_eq!(dot, (atom - 10) as f32 / 10.0);
+            seen[atom - 10] += 1;
+            // A pure function of the lattice point.
+            assert_eq!(choose_diverse(&list, 0.05, i, j), Some((atom, dot)));
+        }
+    }
+    // 1,600 points over three candidates: each taken often (about 533 times).
+    assert!(seen[..3].iter().all(|&n| n > 400), "{seen:?}");
+    // Tolerance 0: the best alone; infinite: every ranked atom.
+    assert!((-5..5).all(|i| choose_diverse(&list, 0.0, i, 3) == Some((10, 0.0))));
+    assert!((-50..50).any(|i| choose_diverse(&list, f32::INFINITY, i, 3).map(|p| p.0) == Some(13)));
 }
