@@ -101,6 +101,44 @@ fn an_instance_tile_alone_is_the_window_of_a_block_and_distances_hold_across_bor
     );
 }
 
+/// The instance halos read material weights over windows that cut tiles: a window computed
+/// directly equals the same pixels of the tiles' own weights, bit for bit, on a window straddling
+/// four zoom-15 tiles (the world that computes the window has computed no tile's weights).
+#[test]
+fn material_weights_of_a_window_are_the_tiles_weights_bit_for_bit() {
+    let (x, y) = Z15;
+    let (tiles_world, window_world) = (world(), world());
+    let w = Window::new(i64::from(x) * 256 + 170, i64::from(y) * 256 + 90, 200, 230);
+    let direct = window_world.material_window(15, w).unwrap();
+    assert!(!direct.is_empty());
+    let mut compared = 0usize;
+    for (dx, dy) in [(0i64, 0i64), (1, 0), (0, 1), (1, 1)] {
+        let (tx, ty) = (i64::from(x) + dx, i64::from(y) + dy);
+        let (weights, _) = tiles_world.material_weights_at(15, tx, ty).unwrap();
+        assert_eq!(weights.len(), direct.len());
+        for r in 0..w.rows {
+            for c in 0..w.cols {
+                let (gr, gc) = (w.row0 + r as i64, w.col0 + c as i64);
+                if gr.div_euclid(256) != ty || gc.div_euclid(256) != tx {
+                    continue;
+                }
+                let (tr, tc) = (gr.rem_euclid(256) as usize, gc.rem_euclid(256) as usize);
+                for (t, d) in weights.iter().zip(&direct) {
+                    assert_eq!(
+                        t[[tr, tc]].to_bits(),
+                        d[[r, c]].to_bits(),
+                        "tile ({tx}, {ty}) pixel ({tr}, {tc})"
+                    );
+                }
+                compared += 1;
+            }
+        }
+    }
+    assert_eq!(compared, w.rows * w.cols);
+    // Not all one material: the comparison covers varied weights.
+    assert!(direct.iter().any(|m| m.iter().any(|&v| v > 0.0 && v < 1.0)));
+}
+
 #[test]
 fn instances_stand_on_their_layers_and_on_the_elevation_tiles_ground() {
     let w = world();

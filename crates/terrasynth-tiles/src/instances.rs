@@ -17,7 +17,7 @@ use terrasynth_core::synth::Window;
 
 use crate::error::TileError;
 use crate::mercator::{mercator_to_lonlat, pixel_size_m, TILE_SIZE};
-use crate::pyramid::{for_each_tile_part, tile_window};
+use crate::pyramid::tile_window;
 use crate::world::World;
 
 /// Extent of the MVT tiles' coordinate grid (16 units per pixel).
@@ -64,7 +64,7 @@ pub fn instances_in(world: &World, z: u8, w: Window) -> Result<Vec<Placed>, Tile
         .iter()
         .any(|r| !r.materials.is_empty() || !r.exclude_materials.is_empty());
     let materials = if needs_materials {
-        material_window(world, z, big)?
+        world.material_window(z, big)?
     } else {
         Vec::new()
     };
@@ -125,21 +125,6 @@ pub fn instances_in(world: &World, z: u8, w: Window) -> Result<Vec<Placed>, Tile
 
 fn unknown(name: &str) -> TileError {
     TileError::Encode(format!("scatter names unknown layer `{name}`"))
-}
-
-/// Material weights over window `w` of zoom `z`, assembled from per-tile weights.
-fn material_window(world: &World, z: u8, w: Window) -> Result<Vec<Array2<f32>>, TileError> {
-    let n = world.landscape().materials.len();
-    let mut out: Vec<Array2<f32>> = (0..n).map(|_| Array2::zeros((w.rows, w.cols))).collect();
-    for_each_tile_part(w, |tx, ty, src, dst| {
-        let (weights, _) = world.material_weights_at(z, tx, ty)?;
-        for (o, t) in out.iter_mut().zip(&weights) {
-            o.slice_mut(ndarray::s![dst.0.clone(), dst.1.clone()])
-                .assign(&t.slice(ndarray::s![src.0.clone(), src.1.clone()]));
-        }
-        Ok(())
-    })?;
-    Ok(out)
 }
 
 /// The `species` value of an instance of rule `rule`.

@@ -6,6 +6,7 @@
 use ndarray::Array2;
 
 use terrasynth_core::landscape::{self, LandscapeConfig, LayerInputs};
+use terrasynth_core::synth::Window;
 
 use crate::classes::ClassWeights;
 use crate::coverage::mask_in_place;
@@ -14,7 +15,7 @@ use crate::mercator::pixel_size_m;
 use crate::pyramid::tile_window;
 use crate::terrain::Terrain;
 use crate::vegetation::{wetness, Inputs, VegetationLevels};
-use crate::water::{zero_under_water, DEPTH};
+use crate::water::zero_under_water;
 
 /// Name of the material of submerged pixels: a landscape material of that name, else one
 /// appended after the landscape's materials.
@@ -46,7 +47,7 @@ pub fn splat_names(landscape: &LandscapeConfig) -> Vec<&str> {
 
 /// Normalised material weights of tile `(z, tx, ty)` (one grid per name of [`splat_names`]:
 /// submerged pixels are all `water`; summing to the pixel's coverage: 1 inside the base, 0 outside it, see [`crate::coverage`]), and the tile's
-/// hillshade (0–1).
+/// hillshade (0–1): [`material_window`] over the tile.
 pub fn material_tile(
     landscape: &LandscapeConfig,
     vegetation: &VegetationLevels,
@@ -56,13 +57,34 @@ pub fn material_tile(
     tx: i64,
     ty: i64,
 ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
-    let w = tile_window(tx, ty);
+    material_window(
+        landscape,
+        vegetation,
+        classes,
+        inputs,
+        z,
+        tile_window(tx, ty),
+    )
+}
+
+/// Normalised material weights over an arbitrary window `w` of zoom `z`, and its hillshade. Every
+/// input is per pixel (the derivatives read a one-pixel border), so the weights of a window are
+/// those of the tiles it covers, bit for bit, without computing those whole tiles (the instance
+/// tiles' halos need only a strip of each neighbour).
+pub fn material_window(
+    landscape: &LandscapeConfig,
+    vegetation: &VegetationLevels,
+    classes: &ClassWeights,
+    inputs: Inputs<'_>,
+    z: u8,
+    w: Window,
+) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
     let terrain = Terrain::of(inputs.elevation, z, w)?;
     let area = inputs
         .drainage
-        .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)?;
+        .window(inputs.elevation, inputs.whole, inputs.water, z, w)?;
     let wet = wetness(&area);
-    let veg = vegetation.tile(inputs, z, tx, ty)?;
+    let veg = vegetation.window(inputs, z, w)?;
     // Only the classes (and biomes) a material names are sampled.
     let class_weights: Vec<(String, Array2<f32>)> = if landscape
         .materials
@@ -86,24 +108,24 @@ pub fn material_tile(
     };
     let mut weights = landscape::material_weights(landscape, &layer_inputs);
     // Submerged pixels are all `water`.
-    let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
+    let depth = inputs.water.depth_window(inputs.elevation, z, w)?;
     let k = water_index(landscape);
     if k == weights.len() {
         weights.push(Array2::zeros((w.rows, w.cols)));
     }
     for (i, m) in weights.iter_mut().enumerate() {
         if i != k {
-            zero_under_water(m, depth);
+            zero_under_water(m, &depth);
         }
     }
     ndarray::Zip::from(&mut weights[k])
-        .and(depth)
+        .and(&depth)
         .for_each(|v, &d| {
             if d > 0.0 {
                 *v = 1.0;
             }
         });
-    let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
+    let coverage = inputs.elevation.coverage_window(z, w)?;
     for m in &mut weights {
         mask_in_place(m, &coverage);
     }

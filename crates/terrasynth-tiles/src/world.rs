@@ -755,6 +755,20 @@ impl World {
         )
     }
 
+    /// Normalised material weights over window `w` of zoom `z` (no check that it meets the
+    /// world), equal bit for bit to the same window of the tiles' weights.
+    pub fn material_window(&self, z: u8, w: Window) -> Result<Vec<Array2<f32>>, TileError> {
+        materials::material_window(
+            &self.landscape,
+            &self.vegetation,
+            &self.classes,
+            self.inputs(),
+            z,
+            w,
+        )
+        .map(|(weights, _shade)| weights)
+    }
+
     /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),
     /// and the tile's hillshade (0–1).
     pub fn material_tile(
