@@ -209,7 +209,10 @@ try {
   // no console error (the listeners above stay on).
   log(`opening ${base}/minimal.html`);
   await page.goto(`${base}/minimal.html`, { waitUntil: 'load' });
-  await page.waitForFunction(() => !!window.map, null, { timeout: IDLE_TIMEOUT_MS });
+  // `window.map` is the page's <div id="map"> (a named property of window) until the module
+  // script, after its dynamic import of MapLibre, replaces it with the map: wait for the map.
+  await page.waitForFunction(() => !!window.map && typeof window.map.loaded === 'function', null,
+    { timeout: IDLE_TIMEOUT_MS });
   await page.evaluate(() => { window.terrasynth = { map: window.map }; });
   await waitIdle('minimal page');
   await checkDrawn('minimal page');
