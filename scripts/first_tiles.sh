@@ -1,0 +1,102 @@
+#!/usr/bin/env bash
+# First tiles of a fresh server, timed one request at a time with curl (a measurement, not in CI).
+#
+# Starts the given binary on the default world with empty tile caches (the dictionary store is
+# reused, so start-up does not rebuild it), then:
+#   landscape: the first colour tile at zoom 10 (it waits for the whole-world layers), a
+#              neighbour, the first zoom-14 colour tile and a neighbour, the first zoom-14
+#              instance tile, four neighbours, and one 40 tiles away (a fresh chain);
+#   elevation: (a second fresh server, started --settle seconds before) one never-visited zoom-14
+#              elevation tile, then its 35 neighbours back to back: the first's time and the
+#              neighbours' p50 / p90 / max.
+# Compare two builds by running it on each, alternating.
+#
+# Usage: scripts/first_tiles.sh [--bin PATH] [--store-dir DIR] [--port N] [--settle S]
+#   --bin PATH        server binary (default target/release/terrasynth)
+#   --store-dir DIR   dictionary store reused between runs (default target/first-tiles-store)
+#   --port N          port on 127.0.0.1 (default 18095)
+#   --settle S        seconds between start and the elevation part's first request (default 8)
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BIN="$ROOT/target/release/terrasynth"
+STORE_DIR="$ROOT/target/first-tiles-store"
+PORT=18095
+SETTLE=8
+
+die() { echo "first_tiles: $*" >&2; exit 2; }
+need_value() { [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value"; }
+while [[ $# -gt 0 ]]; do
+    case "$1" in
+        --bin) need_value "$@"; BIN="$2"; shift 2 ;;
+        --store-dir) need_value "$@"; STORE_DIR="$2"; shift 2 ;;
+        --port) need_value "$@"; PORT="$2"; shift 2 ;;
+        --settle) need_value "$@"; SETTLE="$2"; shift 2 ;;
+        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+        *) die "unknown argument '$1' (see --help)" ;;
+    esac
+done
+[[ -x "$BIN" ]] || die "no executable at $BIN (cargo build --release, or --bin)"
+[[ "$PORT" =~ ^[0-9]+$ && "$PORT" -ge 1 && "$PORT" -le 65535 ]] || die "--port must be 1-65535"
+[[ "$SETTLE" =~ ^[0-9]+$ ]] || die "--settle must be whole seconds"
+command -v curl >/dev/null || die "curl is needed"
+mkdir -p "$STORE_DIR"
+
+S="http://127.0.0.1:$PORT"
+LOG="$(mktemp)"
+SERVER_PID=""
+stop_server() {
+    if [[ -n "$SERVER_PID" ]]; then
+        kill "$SERVER_PID" 2>/dev/null || true
+        wait "$SERVER_PID" 2>/dev/null || true
+        SERVER_PID=""
+    fi
+}
+trap 'stop_server; rm -f "$LOG"' EXIT
+
+start_server() {
+    if curl -s -o /dev/null --max-time 2 "$S/"; then
+        die "something already listens on $S; pick another --port"
+    fi
+    (cd "$ROOT" && exec env TERRASYNTH_STORE_DIR="$STORE_DIR" TERRASYNTH_CACHE_MB=512 \
+        "$BIN" serve --listen "127.0.0.1:$PORT") >"$LOG" 2>&1 &
+    SERVER_PID=$!
+    local start=$SECONDS
+    until curl -fs -o /dev/null --max-time 2 "$S/healthz"; do
+        kill -0 "$SERVER_PID" 2>/dev/null || { tail -n 20 "$LOG" >&2; die "the server exited"; }
+        ((SECONDS - start < 300)) || die "the server was not healthy after 300 s (log: $LOG)"
+        sleep 0.5
+    done
+}
+
+# timed LABEL PATH: one request, its status and seconds.
+timed() { curl -s -o /dev/null -w "$1 %{http_code} %{time_total}\n" "$S$2"; }
+
+X=11590 Y=6050 # zoom 14 over the Kyrgyz Ala-Too
+echo "# landscape: first tiles of a fresh server (seconds)"
+start_server
+timed color-z10-first "/tiles/tienshan/color/10/$((X / 16))/$((Y / 16)).png"
+timed color-z10-next "/tiles/tienshan/color/10/$((X / 16 + 1))/$((Y / 16)).png"
+timed color-z14-first "/tiles/tienshan/color/14/$X/$Y.png"
+timed color-z14-next "/tiles/tienshan/color/14/$((X + 1))/$Y.png"
+timed instances-z14-first "/tiles/tienshan/instances/14/$X/$Y.mvt"
+for i in 1 2 3 4; do
+    timed "instances-z14-next$i" "/tiles/tienshan/instances/14/$((X + i))/$Y.mvt"
+done
+timed instances-z14-far "/tiles/tienshan/instances/14/$((X + 40))/$((Y + 20)).mvt"
+stop_server
+
+echo "# elevation: a never-visited zoom-14 area, $SETTLE s after start (ms)"
+start_server
+sleep "$SETTLE"
+X=11600 Y=6060
+curl -s -o /dev/null -w "first %{time_total}\n" "$S/tiles/tienshan/elevation/14/$X/$Y.png" |
+    awk '{ printf "first %.1f\n", $2 * 1000 }'
+for dy in 0 1 2 3 4; do
+    for dx in 1 2 3 4 5 6 7; do
+        curl -s -o /dev/null -w "%{time_total}\n" \
+            "$S/tiles/tienshan/elevation/14/$((X + dx))/$((Y + dy)).png"
+    done
+done | sort -g | awk '{ v[NR] = $1 * 1000 }
+    END { printf "neighbours n %d p50 %.1f p90 %.1f max %.1f\n", NR, v[int((NR + 1) / 2)],
+          v[int(0.9 * NR)], v[NR] }'
