@@ -9,7 +9,9 @@
 //! part `a·(D~_h,k − U_k)`, weighted by `α = (1 − r²)³`, `r = |p − c| / s`. The detail amplitude
 //! `a` follows the parent's own finest octave ([`Levers::roughness`]): `a` makes the detail's RMS
 //! `roughness · RMS(P − CR(box P))`, so each level adds the fraction of the octave above that real
-//! terrain carries, whatever the scale the atoms were cut at. Every pixel is covered by exactly 4
+//! terrain carries, whatever the scale the atoms were cut at; the fraction is larger where that
+//! octave is gentle ([`Levers::gentle_roughness`]: steep ranges keep less of it than low ranges
+//! and plains). Every pixel is covered by exactly 4
 //! primitives and their contributions are added in lattice order, whatever window is requested,
 //! so a pixel's value does not depend on the window it is computed in (bit for bit).
 //!
@@ -101,6 +103,21 @@ const LAYER_PASSES: i64 = 4;
 
 /// Largest factor [`Levers::slope_mod`] multiplies an atom's detail by.
 const SLOPE_MOD_MAX: f32 = 3.0;
+
+/// The roughness of a primitive whose parent's finest octave has slope `octave_slope` (its RMS
+/// per cell): `gentle.0` ([`Levers::gentle_roughness`]) up to `gentle.1`
+/// ([`Levers::gentle_slope`]), `roughness` from twice that, linear in between; `roughness`
+/// alone when `gentle.0` is 0.
+fn gentle_blend(roughness: f32, gentle: (f32, f32), octave_slope: f32) -> f32 {
+    let (gentle_rough, gentle_slope) = gentle;
+    // A NaN slope fails `<` and takes the plain roughness.
+    let on_ramp = octave_slope < 2.0 * gentle_slope;
+    if gentle_rough <= 0.0 || gentle_slope <= 0.0 || !on_ramp {
+        return roughness;
+    }
+    let t = ((octave_slope - gentle_slope) / gentle_slope).clamp(0.0, 1.0);
+    gentle_rough + (roughness - gentle_rough) * t
+}
 
 /// Largest detail amplitude relative to the patch's relief `P_s` under [`Levers::roughness`].
 const MAX_DETAIL_PER_RELIEF: f32 = 4.0;
@@ -483,6 +500,7 @@ impl Amplifier {
             .collect();
         let pw = parent.window;
         let roughness = self.levers.roughness;
+        let gentle = (self.levers.gentle_roughness, self.levers.gentle_slope);
         let octave_match = self.levers.octave_match;
         let diversity = self.levers.diversity.max(1) as usize;
         let diversity_tol = self.levers.diversity_tol;
@@ -542,12 +560,13 @@ impl Amplifier {
                         self.matcher.best_match(query, scratch)
                     };
                     let detail_coef = if roughness > 0.0 {
+                        let finest = finest_octave_rms(raw, lo, octave);
                         let rough = if octave_match > 0.0 {
                             octave_match * self.detail_per_octave[atom]
                         } else {
-                            roughness
+                            gentle_blend(roughness, gentle, finest / parent_cell_m)
                         };
-                        let oct = rough * finest_octave_rms(raw, lo, octave);
+                        let oct = rough * finest;
                         let target = (oct * oct + floor * floor).sqrt();
                         let own = self.detail_rms[atom];
                         if own > 0.0 {
@@ -1162,6 +1181,26 @@ fn correct_n<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gentle_octaves_take_the_gentle_roughness_steep_ones_the_plain_one() {
+        let g = (0.8, 0.04);
+        // Up to the gentle slope: the gentle roughness; from twice it: the plain one.
+        for s in [0.0, 0.01, 0.04] {
+            assert_eq!(gentle_blend(0.58, g, s), 0.8, "{s}");
+        }
+        for s in [0.08, 0.2, f32::INFINITY] {
+            assert_eq!(gentle_blend(0.58, g, s), 0.58, "{s}");
+        }
+        // Halfway along the ramp: halfway between them.
+        assert!((gentle_blend(0.58, g, 0.06) - 0.69).abs() < 1e-6);
+        // Monotone on the ramp.
+        assert!(gentle_blend(0.58, g, 0.05) > gentle_blend(0.58, g, 0.07));
+        // Off (0), a zero slope threshold or a NaN slope: the plain roughness.
+        assert_eq!(gentle_blend(0.58, (0.0, 0.04), 0.01), 0.58);
+        assert_eq!(gentle_blend(0.58, (0.8, 0.0), 0.01), 0.58);
+        assert_eq!(gentle_blend(0.58, g, f32::NAN), 0.58);
+    }
 
     #[test]
     fn the_stripe_cap_removes_and_caps_row_and_column_means() {
