@@ -91,16 +91,18 @@ pub struct Levers {
 
 impl Default for Levers {
     /// The served amplifier: detail amplitude from the parent's finest octave (0.58 of it where
-    /// that octave is steep, 0.8 where it is gentle) over a floor of 3 m at 1 km cells; Kaiser-6 correction in two passes; pits breached within 16 cells
-    /// where the terrain rises at 5 % or more around them, within 4 cells on flats; each
-    /// primitive's atom picked among the 8 best matches by a hash of its lattice point.
+    /// that octave is steep, 0.8 where it is gentle; no floor: with the gentle roughness the
+    /// floor only cost drainage figures); Kaiser-6 correction in two passes; pits breached
+    /// within 16 cells where the terrain rises at 5 % or more around them, within 4 cells on
+    /// flats; each primitive's atom picked among the 8 best matches by a hash of its lattice
+    /// point.
     fn default() -> Self {
         Levers {
             consistent_split: false,
             parent_smooth: false,
             blend_power: 1,
             roughness: 0.58,
-            floor_m: 3.0,
+            floor_m: 0.0,
             gentle_roughness: 0.8,
             gentle_slope: 0.04,
             octave_match: 0.0,
