@@ -151,9 +151,10 @@ impl Levers {
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
-    /// pits), `floor=M`, `gentle=R` (roughness
-    /// where the finest octave is gentle), `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `sparsity=S` (0: the dictionary's), `diverse=K`
-    /// (atoms a primitive chooses among), `within=T` (their score tolerance).
+    /// pits), `floor=M`, `gentle=R` (roughness where the finest octave is gentle),
+    /// `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `sparsity=S` (0:
+    /// the dictionary's), `diverse=K` (atoms a primitive chooses among), `within=T` (their score
+    /// tolerance).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
