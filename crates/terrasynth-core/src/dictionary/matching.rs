@@ -158,19 +158,19 @@ impl ResolvedWeights {
         })
     }
 
+    /// Sum of the weights of the layer terms: the most they can add to a score.
+    fn layers_weight(&self) -> f32 {
+        self.layers
+            .iter()
+            .map(|t| match t {
+                LayerTerm::Continuous { weight, .. } | LayerTerm::Class { weight, .. } => *weight,
+            })
+            .sum::<f32>()
+    }
+
     /// Sum of the weights of every term other than elevation: the most they can add to a score.
     fn rest(&self) -> f32 {
-        self.altitude
-            + self.slope
-            + self
-                .layers
-                .iter()
-                .map(|t| match t {
-                    LayerTerm::Continuous { weight, .. } | LayerTerm::Class { weight, .. } => {
-                        *weight
-                    }
-                })
-                .sum::<f32>()
+        self.altitude + self.slope + self.layers_weight()
     }
 }
 
@@ -230,9 +230,15 @@ pub fn unit_centred(x: &[f32]) -> Vec<f32> {
     out
 }
 
-/// Mean over pixels of the dot product of unit-norm class vectors; `p` and `d` hold the group's
-/// layers one after another (`k × n` values each).
-fn class_similarity(p: &[f32], d: &[f32], k: usize, n: usize) -> f32 {
+/// Mean over pixels of the dot product of unit-norm class vectors: `p(c, px)` and `d(c, px)` are
+/// the query's and the atom's value of the group's `c`-th layer (of `k`) at pixel `px` (of `n`).
+/// Read in place, so that scoring an atom allocates nothing.
+fn class_similarity(
+    k: usize,
+    n: usize,
+    p: impl Fn(usize, usize) -> f32,
+    d: impl Fn(usize, usize) -> f32,
+) -> f32 {
     if n == 0 || k == 0 {
         return 0.0;
     }
@@ -240,8 +246,8 @@ fn class_similarity(p: &[f32], d: &[f32], k: usize, n: usize) -> f32 {
     for px in 0..n {
         let (mut pp, mut dd, mut pd) = (0.0f32, 0.0f32, 0.0f32);
         for c in 0..k {
-            let a = p[c * n + px];
-            let b = d[c * n + px];
+            let a = p(c, px);
+            let b = d(c, px);
             pp += a * a;
             dd += b * b;
             pd += a * b;
@@ -298,7 +304,6 @@ fn combine(
     s: Sigmas,
     i: usize,
     elev_dot: f32,
-    scratch: &mut Vec<f32>,
 ) -> f32 {
     let lo2 = dict.lo_patch() * dict.lo_patch();
     let mut score = w.elevation * (0.5 * (1.0 + elev_dot));
@@ -329,17 +334,51 @@ fn combine(
                 if !have_all {
                     continue;
                 }
-                scratch.clear();
-                let mut p = Vec::with_capacity(k * lo2);
-                for l in layers {
-                    p.extend_from_slice(&q.layers[*l]);
-                    scratch.extend_from_slice(prepared.atom(*l, i, lo2));
-                }
-                score += weight * class_similarity(&p, scratch, k, lo2);
+                score += weight
+                    * class_similarity(
+                        k,
+                        lo2,
+                        |c, px| q.layers[layers[c]][px],
+                        |c, px| prepared.atom(layers[c], i, lo2)[px],
+                    );
             }
         }
     }
     score
+}
+
+/// An upper bound of `e^{−x}` for `x ≥ 0` without an exponential: `1 / (1 + x + x²/2 + x³/6)`
+/// (the first terms of `e^x`'s series, all positive, sum to at most `e^x`).
+#[inline]
+fn exp_neg_upper(x: f32) -> f32 {
+    1.0 / (1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0))))
+}
+
+/// An upper bound of atom `i`'s full score ([`combine`]) given its elevation dot product, cheaper
+/// than the score: the altitude and slope kernels bounded by [`exp_neg_upper`] of the same
+/// argument, the layer terms by their weights, plus [`PRUNE_SLACK`] (in `layers_slack`) for the
+/// rounding of both sums. Checked only for atoms that the plain bound (elevation plus every
+/// other weight) did not prune, before paying for their score.
+#[inline]
+fn score_upper_bound(
+    w: &ResolvedWeights,
+    dict: &Dictionary,
+    q: &Query,
+    s: Sigmas,
+    i: usize,
+    elev_dot: f32,
+    layers_slack: f32,
+) -> f32 {
+    let mut b = w.elevation * (0.5 * (1.0 + elev_dot)) + layers_slack;
+    if w.altitude > 0.0 {
+        let d = q.mean_alt - dict.mean_alt[i];
+        b += w.altitude * exp_neg_upper((d * d) * s.inv_alt2);
+    }
+    if w.slope > 0.0 {
+        let d = q.mean_slope - dict.mean_slope[i];
+        b += w.slope * exp_neg_upper((d * d) * s.inv_slope2);
+    }
+    b
 }
 
 /// Prepared dictionary for fast exact matching.
@@ -364,7 +403,7 @@ pub struct Matcher {
 const SCAN_CHUNK: usize = 16;
 
 /// Atoms per block of the dot-product kernel: the block's accumulators stay in registers.
-pub const ATOM_BLOCK: usize = 32;
+pub const ATOM_BLOCK: usize = 64;
 
 /// `dots[i] = Σ_d q[d]·lo_t[d·n_pad + i]` for every atom, summed in increasing `d` — exactly the
 /// order of the naive per-atom loop, so the results are bit-identical to it. Blocks of
@@ -416,7 +455,6 @@ fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], isa: Isa) {
 #[derive(Clone, Debug, Default)]
 pub struct MatchScratch {
     dots: Vec<f32>,
-    class: Vec<f32>,
     /// The seeds of [`Matcher::best_k`].
     seeds: Vec<usize>,
 }
@@ -507,17 +545,9 @@ impl Matcher {
         }
         // The best elevation term alone gives a first full score; an atom can only beat it if its
         // elevation term plus every other weight (each term ≤ 1) reaches it.
-        let mut best_score = combine(
-            w,
-            &self.dict,
-            &self.prepared,
-            q,
-            s,
-            best,
-            dots[best],
-            &mut scratch.class,
-        );
+        let mut best_score = combine(w, &self.dict, &self.prepared, q, s, best, dots[best]);
         let rest = w.rest() + PRUNE_SLACK;
+        let layers_slack = w.layers_weight() + PRUNE_SLACK;
         let first = best;
         let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
         for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
@@ -533,19 +563,13 @@ impl Matcher {
             }
             for (k, &dot_i) in chunk.iter().enumerate() {
                 let i = c * SCAN_CHUNK + k;
-                if i == first || bound(dot_i) < best_score {
+                if i == first
+                    || bound(dot_i) < best_score
+                    || score_upper_bound(w, &self.dict, q, s, i, dot_i, layers_slack) < best_score
+                {
                     continue;
                 }
-                let sc = combine(
-                    w,
-                    &self.dict,
-                    &self.prepared,
-                    q,
-                    s,
-                    i,
-                    dot_i,
-                    &mut scratch.class,
-                );
+                let sc = combine(w, &self.dict, &self.prepared, q, s, i, dot_i);
                 if sc > best_score || (sc == best_score && i < best) {
                     best_score = sc;
                     best = i;
@@ -576,33 +600,35 @@ impl Matcher {
         let s = self.sigmas(q);
         let w = &self.weights;
         let rest = w.rest() + PRUNE_SLACK;
+        let layers_slack = w.layers_weight() + PRUNE_SLACK;
         let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
         // Seeds: the `k` atoms with the largest dot products (ties: lower index), scored first
         // so that the `k`-th best score, the pruning floor, starts high.
         let seeds = &mut scratch.seeds;
         seeds.clear();
-        for (i, &d) in dots.iter().enumerate() {
-            if seeds.len() == k && !(d > dots[seeds[k - 1]]) {
-                continue;
+        for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
+            // Once `k` seeds are held, a chunk in which no value beats the `k`-th is skipped
+            // whole: that value only grows, so the per-atom test below would skip each of them.
+            if seeds.len() == k {
+                let floor = dots[seeds[k - 1]];
+                if !chunk.iter().fold(false, |any, &d| any | (d > floor)) {
+                    continue;
+                }
             }
-            let at = seeds
-                .iter()
-                .position(|&o| d > dots[o])
-                .unwrap_or(seeds.len());
-            seeds.insert(at, i);
-            seeds.truncate(k);
+            for (j, &d) in chunk.iter().enumerate() {
+                if seeds.len() == k && !(d > dots[seeds[k - 1]]) {
+                    continue;
+                }
+                let at = seeds
+                    .iter()
+                    .position(|&o| d > dots[o])
+                    .unwrap_or(seeds.len());
+                seeds.insert(at, c * SCAN_CHUNK + j);
+                seeds.truncate(k);
+            }
         }
         for &i in seeds.iter() {
-            let score = combine(
-                w,
-                &self.dict,
-                &self.prepared,
-                q,
-                s,
-                i,
-                dots[i],
-                &mut scratch.class,
-            );
+            let score = combine(w, &self.dict, &self.prepared, q, s, i, dots[i]);
             insert_ranked(
                 out,
                 k,
@@ -627,19 +653,15 @@ impl Matcher {
             }
             for (j, &dot_i) in chunk.iter().enumerate() {
                 let i = c * SCAN_CHUNK + j;
-                if (out.len() == k && bound(dot_i) < out[k - 1].score) || seeds.contains(&i) {
+                if (out.len() == k
+                    && (bound(dot_i) < out[k - 1].score
+                        || score_upper_bound(w, &self.dict, q, s, i, dot_i, layers_slack)
+                            < out[k - 1].score))
+                    || seeds.contains(&i)
+                {
                     continue;
                 }
-                let score = combine(
-                    w,
-                    &self.dict,
-                    &self.prepared,
-                    q,
-                    s,
-                    i,
-                    dot_i,
-                    &mut scratch.class,
-                );
+                let score = combine(w, &self.dict, &self.prepared, q, s, i, dot_i);
                 insert_ranked(
                     out,
                     k,
@@ -691,7 +713,6 @@ impl Matcher {
             self.sigmas(q),
             i,
             elev_dot,
-            &mut Vec::new(),
         )
     }
 }

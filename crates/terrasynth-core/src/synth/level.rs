@@ -643,10 +643,21 @@ impl Amplifier {
             rest = tail;
             y = end;
         }
+        // Each strip is summed in its thread's own buffers (reused from strip to strip) and
+        // copied out at the end: the output's fresh pages are only ever written, never read
+        // first (a read maps the shared zero page, and the write after it costs a copy-on-write
+        // fault and a TLB flush on every core).
         strips.into_par_iter().for_each_init(
-            || vec![0.0f32; cols * self.step],
-            |acc_detail, (y0, strip)| {
-                let rows = strip.len() / cols;
+            || {
+                (
+                    vec![0.0f32; cols * self.step],
+                    vec![0.0f32; cols * self.step],
+                )
+            },
+            |(acc_value, acc_detail), (y0, out_strip)| {
+                let rows = out_strip.len() / cols;
+                let strip = &mut acc_value[..rows * cols];
+                strip.iter_mut().for_each(|v| *v = 0.0);
                 let det_all = &mut acc_detail[..rows * cols];
                 det_all.iter_mut().for_each(|v| *v = 0.0);
                 // The two primitive rows covering the strip: c_j ∈ (y − s, y + s].
@@ -678,6 +689,7 @@ impl Amplifier {
                 {
                     self.normalise_row(bw, y0 + r as i64, row, det);
                 }
+                out_strip.copy_from_slice(strip);
             },
         );
         Array2::from_shape_vec((bw.rows, bw.cols), flat).unwrap_or_default()
