@@ -8,7 +8,11 @@
 #              instance tile, four neighbours, and one 40 tiles away (a fresh chain);
 #   elevation: (a second fresh server, started --settle seconds before) one never-visited zoom-14
 #              elevation tile, then its 35 neighbours back to back: the first's time and the
-#              neighbours' p50 / p90 / max.
+#              neighbours' p50 / p90 / max;
+#   level:     (a third fresh server, the same settle) every other zoom-14 tile of a 17 x 11 block
+#              of another area first, so that the parents are cached, then the 28 tiles in between
+#              one at a time: their p50 / p90 and the server's CPU time per tile (from
+#              /proc/PID/stat, Linux), the cost of one amplified level and its PNG.
 # Compare two builds by running it on each, alternating.
 #
 # Usage: scripts/first_tiles.sh [--bin PATH] [--store-dir DIR] [--port N] [--settle S]
@@ -100,3 +104,28 @@ for dy in 0 1 2 3 4; do
 done | sort -g | awk '{ v[NR] = $1 * 1000 }
     END { printf "neighbours n %d p50 %.1f p90 %.1f max %.1f\n", NR, v[int((NR + 1) / 2)],
           v[int(0.9 * NR)], v[NR] }'
+stop_server
+
+echo "# level: zoom-14 tiles whose parents are cached, $SETTLE s after start (ms)"
+start_server
+sleep "$SETTLE"
+X=11630 Y=6074
+for dy in -2 0 2 4 6 8; do
+    for dx in -2 0 2 4 6 8 10 12 14; do
+        curl -s -o /dev/null "$S/tiles/tienshan/elevation/14/$((X + dx))/$((Y + dy)).png"
+    done
+done
+sleep 4
+cpu_ticks() { awk '{ print $14 + $15 }' "/proc/$SERVER_PID/stat"; }
+TICKS=$(getconf CLK_TCK)
+C0=$(cpu_ticks)
+TIMES=$(for dy in 1 3 5 7; do
+    for dx in 1 3 5 7 9 11 13; do
+        curl -s -o /dev/null -w "%{time_total}\n" \
+            "$S/tiles/tienshan/elevation/14/$((X + dx))/$((Y + dy)).png"
+    done
+done)
+C1=$(cpu_ticks)
+echo "$TIMES" | sort -g | awk -v cpu="$(((C1 - C0) * 1000 / TICKS))" '{ v[NR] = $1 * 1000 }
+    END { printf "level n %d cpu/tile %.1f p50 %.1f p90 %.1f\n", NR, cpu / NR,
+          v[int((NR + 1) / 2)], v[int(0.9 * NR)] }'
