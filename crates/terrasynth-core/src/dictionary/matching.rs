@@ -518,6 +518,37 @@ impl Matcher {
         Ok(())
     }
 
+    /// The cheaper score bounds ([`score_upper_bounds`]) of the atoms `start..` whose dot
+    /// products are `chunk`, or `None` when the chunk can be skipped whole: every atom's plain
+    /// bound (elevation plus every other weight), or else every atom's cheaper bound, lies below
+    /// `floor`. `!(b < floor)`, not `b >= floor`: a NaN bound is never skipped.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn chunk_bounds<'t>(
+        &self,
+        q: &Query,
+        s: Sigmas,
+        start: usize,
+        chunk: &[f32],
+        floor: f32,
+        tight: &'t mut [f32; SCAN_CHUNK],
+    ) -> Option<&'t [f32]> {
+        let w = &self.weights;
+        let rest = w.rest() + PRUNE_SLACK;
+        let reaches = |b: f32| !(b < floor);
+        if !chunk.iter().fold(false, |any, &d| {
+            any | reaches(w.elevation * (0.5 * (1.0 + d)) + rest)
+        }) {
+            return None;
+        }
+        let tight = &mut tight[..chunk.len()];
+        let layers_slack = w.layers_weight() + PRUNE_SLACK;
+        score_upper_bounds(w, &self.dict, q, s, start, chunk, layers_slack, tight);
+        tight
+            .iter()
+            .fold(false, |any, &t| any | reaches(t))
+            .then_some(&*tight)
+    }
+
     /// Index of the best atom for `q` and its elevation dot product `P_h · D_h,k`.
     /// Identical to [`best_match_naive`]. The query must have the right shape
     /// ([`Matcher::check_query`]); a wrong-length elevation is treated as zero-padded/truncated.
@@ -552,27 +583,16 @@ impl Matcher {
         // elevation term plus every other weight (each term ≤ 1) reaches it.
         let mut best_score = combine(w, &self.dict, &self.prepared, q, s, best, dots[best]);
         let rest = w.rest() + PRUNE_SLACK;
-        let layers_slack = w.layers_weight() + PRUNE_SLACK;
         let mut tight = [0.0f32; SCAN_CHUNK];
         let first = best;
         let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
         for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
             // A chunk whose bounds all lie below the best score so far is skipped whole (the
             // best score only grows, so the per-atom test below would skip each of them).
-            let floor = best_score;
-            if !chunk
-                .iter()
-                // `!(b < floor)`, not `b >= floor`: a NaN bound is not skipped, as below.
-                .fold(false, |any, &d| any | !(bound(d) < floor))
-            {
-                continue;
-            }
-            let tight = &mut tight[..chunk.len()];
             let start = c * SCAN_CHUNK;
-            score_upper_bounds(w, &self.dict, q, s, start, chunk, layers_slack, tight);
-            if !tight.iter().fold(false, |any, &t| any | !(t < floor)) {
+            let Some(tight) = self.chunk_bounds(q, s, start, chunk, best_score, &mut tight) else {
                 continue;
-            }
+            };
             for (k, (&dot_i, &tight_i)) in chunk.iter().zip(tight.iter()).enumerate() {
                 let i = start + k;
                 if i == first || bound(dot_i) < best_score || tight_i < best_score {
@@ -609,7 +629,6 @@ impl Matcher {
         let s = self.sigmas(q);
         let w = &self.weights;
         let rest = w.rest() + PRUNE_SLACK;
-        let layers_slack = w.layers_weight() + PRUNE_SLACK;
         let mut tight = [0.0f32; SCAN_CHUNK];
         let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
         // Seeds: the `k` atoms with the largest dot products (ties: lower index), scored first
@@ -655,18 +674,10 @@ impl Matcher {
             } else {
                 f32::NEG_INFINITY
             };
-            if !chunk
-                .iter()
-                .fold(false, |any, &d| any | !(bound(d) < floor))
-            {
-                continue;
-            }
-            let tight = &mut tight[..chunk.len()];
             let start = c * SCAN_CHUNK;
-            score_upper_bounds(w, &self.dict, q, s, start, chunk, layers_slack, tight);
-            if !tight.iter().fold(false, |any, &t| any | !(t < floor)) {
+            let Some(tight) = self.chunk_bounds(q, s, start, chunk, floor, &mut tight) else {
                 continue;
-            }
+            };
             for (j, (&dot_i, &tight_i)) in chunk.iter().zip(tight.iter()).enumerate() {
                 let i = start + j;
                 if (out.len() == k
