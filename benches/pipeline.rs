@@ -4,8 +4,9 @@
 //! dictionary's high-resolution atoms), compact-terrain decoding (output points per second) and
 //! the instances of a zoom-15 forest tile (instances per second); one gradient-domain level
 //! (`gradient_level`, output points per second, issue #20) with a default tile set built from the
-//! same grid.
-//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances`, `-- gradient_level` for a part).
+//! same grid; the drainage routing of one tile's region (`routing`: Priority-Flood+ε, D8
+//! receivers, accumulation on 512² of the real terrain).
+//! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances`, `-- gradient_level`, `-- routing` for a part).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -255,9 +256,39 @@ fn bench_gradient(c: &mut Criterion) {
     g.finish();
 }
 
+/// The drainage layer's routing of one amplified tile's region (the tile and its 128-px halo:
+/// 512²) on a window of the real terrain: Priority-Flood+ε, D8 receivers and the accumulation
+/// (cells per second).
+fn bench_routing(c: &mut Criterion) {
+    use terrasynth_core::analysis;
+    let grid = embedded::tienshan().expect("embedded grid");
+    let base = grid.filled().expect("valid data");
+    let z = base.slice(s![600..1112, 900..1412]).to_owned();
+    let cells = grid.georef.cell_sizes(grid.rows());
+    let cells = terrasynth_core::raster::CellSizes {
+        dx: cells.dx[600..1112].to_vec(),
+        dy: cells.dy[600..1112].to_vec(),
+    };
+    let filled = analysis::priority_flood_fill(&z);
+    let receivers = analysis::d8_receivers(&filled, &cells);
+    let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
+    let mut g = c.benchmark_group("routing/512²");
+    g.throughput(Throughput::Elements(z.len() as u64));
+    g.bench_function("priority_flood_fill", |b| {
+        b.iter(|| analysis::priority_flood_fill(&z))
+    });
+    g.bench_function("d8_receivers", |b| {
+        b.iter(|| analysis::d8_receivers(&filled, &cells))
+    });
+    g.bench_function("accumulate_sources", |b| {
+        b.iter(|| analysis::accumulate_sources(&receivers, &sources))
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench, bench_sparse, bench_instances, bench_gradient
+    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing
 }
 criterion_main!(benches);

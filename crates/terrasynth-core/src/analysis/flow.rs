@@ -14,6 +14,7 @@ use ndarray::Array2;
 pub use super::common::D8_OFFSETS;
 use super::common::{dir_geometry, neighbour, row_areas, values};
 use crate::raster::CellSizes;
+use crate::simd::Isa;
 
 /// Receiver code of a sink (no strictly lower neighbour): its flow leaves the grid.
 pub const D8_NONE: u8 = 255;
@@ -25,52 +26,124 @@ pub const MFD_EXPONENT: f64 = 1.1;
 /// drop/distance (metric distances from [`CellSizes`]: `dx`, the mean `dy` of the two rows, and
 /// the diagonal of the two), or [`D8_NONE`]. Ties go to the lowest direction index. Drops are
 /// computed in `f64` from the `f32` elevations, so next-float (ε) gradients are honoured.
+///
+/// Computed a row at a time and a direction at a time across the row (every cell still weighs
+/// its directions in index order, so the result is the per-cell scan's, bit for bit: see
+/// [`naive::d8_receivers`](super::naive::d8_receivers) and its property test); the inner loop
+/// is branch-free and runs in the widest vectors [`Isa::current`] allows.
 pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
     let (rows, cols) = filled.dim();
     let z = values(filled);
     let geo = dir_geometry(cs, rows);
     let mut out = vec![D8_NONE; rows * cols];
-    let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
+    // The row's best slopes and their directions (as wide as the slopes, so that the update
+    // vectorises).
+    let mut best = vec![0.0f64; cols];
+    let mut codes = vec![0u64; cols];
     for r in 0..rows {
         let dist = &geo.dist[r * 8..r * 8 + 8];
-        let inner_row = r > 0 && r + 1 < rows;
-        for c in 0..cols {
-            let i = r * cols + c;
-            let zi = z[i] as f64;
-            let mut best = 0.0f64;
-            let mut bd = D8_NONE;
-            if inner_row && c > 0 && c + 1 < cols {
-                for d in 0..8 {
-                    let drop = zi - z[i.wrapping_add_signed(offsets[d])] as f64;
-                    // False for NaN on either side.
-                    if drop > 0.0 {
-                        let s = drop / dist[d];
-                        if s > best {
-                            best = s;
-                            bd = d as u8;
-                        }
-                    }
-                }
-            } else {
-                for (d, &dd) in dist.iter().enumerate() {
-                    let Some((nr, nc)) = neighbour(r, c, d, rows, cols) else {
-                        continue;
-                    };
-                    let drop = zi - z[nr * cols + nc] as f64;
-                    if drop > 0.0 {
-                        let s = drop / dd;
-                        if s > best {
-                            best = s;
-                            bd = d as u8;
-                        }
-                    }
-                }
+        best.fill(0.0);
+        codes.fill(u64::from(D8_NONE));
+        for (d, &(dr, dc)) in D8_OFFSETS.iter().enumerate() {
+            let Some(nr) = r.checked_add_signed(dr).filter(|&nr| nr < rows) else {
+                continue;
+            };
+            // The columns whose neighbour in direction d is inside the grid.
+            let (c0, c1) = match dc {
+                -1 => (1, cols),
+                1 => (0, cols.saturating_sub(1)),
+                _ => (0, cols),
+            };
+            if c0 >= c1 {
+                continue;
             }
-            out[i] = bd;
+            let n0 = c0.wrapping_add_signed(dc);
+            let n1 = c1.wrapping_add_signed(dc);
+            d8_direction(
+                &z[r * cols + c0..r * cols + c1],
+                &z[nr * cols + n0..nr * cols + n1],
+                dist[d],
+                d as u64,
+                &mut best[c0..c1],
+                &mut codes[c0..c1],
+            );
+        }
+        for (o, &code) in out[r * cols..(r + 1) * cols].iter_mut().zip(&codes) {
+            *o = code as u8;
         }
     }
     Array2::from_shape_vec((rows, cols), out)
         .unwrap_or_else(|_| Array2::from_elem((rows, cols), D8_NONE))
+}
+
+/// One direction of [`d8_receivers`] across part of a row: each cell whose drop to its
+/// neighbour (`here − there`, in `f64`) is positive and whose slope `drop / dist` beats its
+/// best so far takes direction `d`.
+#[inline]
+fn d8_direction(
+    here: &[f32],
+    there: &[f32],
+    dist: f64,
+    d: u64,
+    best: &mut [f64],
+    codes: &mut [u64],
+) {
+    #[cfg(target_arch = "x86_64")]
+    match Isa::current() {
+        // SAFETY: `Isa::current` returns these only when the CPU reports the feature.
+        Isa::Avx512 => return unsafe { d8_direction_avx512(here, there, dist, d, best, codes) },
+        Isa::Avx2 => return unsafe { d8_direction_avx2(here, there, dist, d, best, codes) },
+        Isa::Baseline => {}
+    }
+    d8_direction_plain(here, there, dist, d, best, codes);
+}
+
+#[inline(always)]
+fn d8_direction_plain(
+    here: &[f32],
+    there: &[f32],
+    dist: f64,
+    d: u64,
+    best: &mut [f64],
+    codes: &mut [u64],
+) {
+    let n = here.len().min(there.len()).min(best.len()).min(codes.len());
+    let (here, there, best, codes) = (&here[..n], &there[..n], &mut best[..n], &mut codes[..n]);
+    for i in 0..n {
+        let drop = f64::from(here[i]) - f64::from(there[i]);
+        let slope = drop / dist;
+        // False for NaN on either side. Both tests are evaluated (no branch), so the loop
+        // vectorises.
+        let take = (drop > 0.0) & (slope > best[i]);
+        best[i] = if take { slope } else { best[i] };
+        codes[i] = if take { d } else { codes[i] };
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn d8_direction_avx2(
+    here: &[f32],
+    there: &[f32],
+    dist: f64,
+    d: u64,
+    best: &mut [f64],
+    codes: &mut [u64],
+) {
+    d8_direction_plain(here, there, dist, d, best, codes);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn d8_direction_avx512(
+    here: &[f32],
+    there: &[f32],
+    dist: f64,
+    d: u64,
+    best: &mut [f64],
+    codes: &mut [u64],
+) {
+    d8_direction_plain(here, there, dist, d, best, codes);
 }
 
 /// Row-major index of the receiver of cell `i`, if any.
@@ -250,4 +323,59 @@ pub fn flow_accumulation_mfd(filled: &Array2<f32>, cs: &CellSizes, exponent: f64
 /// `log10` of an upstream-area grid, as `f32` (for display and statistics).
 pub fn log_upstream_area(area: &Array2<f64>) -> Array2<f32> {
     area.mapv(|a| a.log10() as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every vector build of the D8 row update this CPU runs equals the plain loop bit for bit
+    /// (slopes and codes), on rows with rises, falls, ties, NaN and single-ulp steps.
+    #[test]
+    fn d8_direction_builds_equal_the_plain_loop() {
+        for n in [0usize, 1, 7, 8, 9, 31, 64, 1000] {
+            let here: Vec<f32> = (0..n)
+                .map(|i| match i % 11 {
+                    3 => f32::NAN,
+                    5 => 1000.0,
+                    _ => 1000.0 + ((i as f32) * 0.731).sin() * 40.0,
+                })
+                .collect();
+            let there: Vec<f32> = (0..n)
+                .map(|i| match i % 7 {
+                    2 => f32::NAN,
+                    4 => here[i].next_down(),
+                    5 => here[i],
+                    _ => 1000.0 + ((i as f32) * 1.37).cos() * 40.0,
+                })
+                .collect();
+            let start: Vec<f64> = (0..n).map(|i| [0.0, 0.1, 2.5][i % 3]).collect();
+            let run = |f: &dyn Fn(&mut [f64], &mut [u64])| {
+                let mut best = start.clone();
+                let mut codes = vec![u64::from(D8_NONE); n];
+                f(&mut best, &mut codes);
+                (best.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), codes)
+            };
+            let plain = run(&|b, c| d8_direction_plain(&here, &there, 30.0, 3, b, c));
+            if n >= 31 {
+                // The rows exercise both outcomes.
+                assert!(plain.1.contains(&3));
+                assert!(plain.1.contains(&u64::from(D8_NONE)));
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU reports AVX2.
+                    let v = run(&|b, c| unsafe { d8_direction_avx2(&here, &there, 30.0, 3, b, c) });
+                    assert_eq!(v, plain);
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU reports AVX-512F.
+                    let v =
+                        run(&|b, c| unsafe { d8_direction_avx512(&here, &there, 30.0, 3, b, c) });
+                    assert_eq!(v, plain);
+                }
+            }
+        }
+    }
 }

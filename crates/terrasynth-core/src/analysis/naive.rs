@@ -69,6 +69,18 @@ pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
     (gx, gy)
 }
 
+/// Priority-Flood+ε ([`priority_flood_fill`](super::priority_flood_fill)'s algorithm) on the
+/// standard library's binary heap instead of its 4-ary heap: the same sequence of cells, hence
+/// the same bits, if the 4-ary heap pops in order.
+pub fn priority_flood_fill_binary_heap(z: &Array2<f32>) -> Array2<f32> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    super::flood::flood_in::<BinaryHeap<Reverse<u64>>, BinaryHeap<Reverse<(u32, usize)>>>(
+        z,
+        super::next_up,
+    )
+}
+
 /// Planchon & Darboux (2001) style relaxation without ε: start from the border (and NaN cells)
 /// at their own height and every other cell at +∞, then repeatedly set
 /// `W = max(z, min over 8 neighbours of W)` (NaN neighbours count as −∞, i.e. outlets) until
@@ -163,22 +175,39 @@ fn neighbours(
     out
 }
 
-/// D8 upstream area by brute force: every cell walks down its steepest-descent chain (chosen
-/// independently here, ties to the first direction) to a sink, adding its own area to every
-/// cell on the way.
-pub fn flow_accumulation_d8(filled: &Array2<f32>, cs: &CellSizes) -> Array2<f64> {
+/// D8 receivers by a per-cell scan: each cell weighs its neighbours in direction order and
+/// keeps the first strictly steepest positive drop/distance ([`D8_NONE`](super::D8_NONE) when
+/// none drops).
+pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
     let (rows, cols) = filled.dim();
-    let receiver = |r: usize, c: usize| -> Option<(usize, usize)> {
-        let mut best: Option<(usize, usize)> = None;
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let mut best = super::D8_NONE;
         let mut best_s = 0.0;
-        for (nr, nc, dist, _) in neighbours(rows, cols, cs, r, c).into_iter().flatten() {
+        for (k, n) in neighbours(rows, cols, cs, r, c).into_iter().enumerate() {
+            let Some((nr, nc, dist, _)) = n else { continue };
             let drop = filled[[r, c]] as f64 - filled[[nr, nc]] as f64;
             if drop > 0.0 && drop / dist > best_s {
                 best_s = drop / dist;
-                best = Some((nr, nc));
+                best = k as u8;
             }
         }
         best
+    })
+}
+
+/// D8 upstream area by brute force: every cell walks down its steepest-descent chain
+/// ([`d8_receivers`] of this module) to a sink, adding its own area to every
+/// cell on the way.
+pub fn flow_accumulation_d8(filled: &Array2<f32>, cs: &CellSizes) -> Array2<f64> {
+    let (rows, cols) = filled.dim();
+    let codes = d8_receivers(filled, cs);
+    let receiver = |r: usize, c: usize| -> Option<(usize, usize)> {
+        let k = usize::from(codes[[r, c]]);
+        neighbours(rows, cols, cs, r, c)
+            .get(k)
+            .copied()
+            .flatten()
+            .map(|(nr, nc, _, _)| (nr, nc))
     };
     let mut acc = Array2::zeros((rows, cols));
     for r in 0..rows {

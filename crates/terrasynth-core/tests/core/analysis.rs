@@ -82,6 +82,25 @@ fn grid_strategy() -> impl Strategy<Value = (Array2<f32>, CellSizes)> {
     })
 }
 
+/// Random grid with continuous heights (a few NaN cells, steps down to single ulps after
+/// Priority-Flood+ε) and non-integer per-row cell sizes.
+fn real_grid_strategy() -> impl Strategy<Value = (Array2<f32>, CellSizes)> {
+    (1usize..40, 1usize..70).prop_flat_map(|(rows, cols)| {
+        (
+            proptest::collection::vec(
+                prop_oneof![20 => -50.0f32..4000.0, 1 => Just(f32::NAN)],
+                rows * cols,
+            ),
+            proptest::collection::vec(5.0f64..40.0, rows),
+            proptest::collection::vec(5.0f64..40.0, rows),
+        )
+            .prop_map(move |(h, dx, dy)| {
+                let z = Array2::from_shape_vec((rows, cols), h).unwrap();
+                (z, CellSizes { dx, dy })
+            })
+    })
+}
+
 fn rel_close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * a.abs().max(b.abs()).max(1e-300)
 }
@@ -99,6 +118,21 @@ proptest! {
         let fast = analysis::priority_flood_fill_flat(&z);
         let slow = naive::fill_flat(&z);
         prop_assert_eq!(fast, slow);
+    }
+
+    /// Priority-Flood+ε on its 4-ary heap equals the same flood on the standard binary heap bit
+    /// for bit (quantised heights full of ties, and continuous heights with NaN cells).
+    #[test]
+    fn eps_fill_equals_the_binary_heap_flood(
+        (tied, _c) in grid_strategy(),
+        (real, _r) in real_grid_strategy(),
+    ) {
+        for z in [&tied, &real] {
+            let fast = analysis::priority_flood_fill(z);
+            let slow = naive::priority_flood_fill_binary_heap(z);
+            let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            prop_assert_eq!(bits(&fast), bits(&slow));
+        }
     }
 
     /// Source accumulation (used with injected inflows by the drainage layer) equals the naive
@@ -167,6 +201,21 @@ proptest! {
         prop_assert_eq!(&raw_fast, &naive::flow_accumulation_d8(&z, &cs));
         let raw_rcv = analysis::d8_receivers(&z, &cs);
         prop_assert_eq!(sink_total(&raw_fast, &raw_rcv), total_area(&cs, rows, cols));
+    }
+
+    /// The row-wise, vectorised D8 receivers equal the per-cell scan code for code: on plateaus
+    /// and ties (quantised heights), on continuous heights with NaN cells, raw and ε-filled.
+    #[test]
+    fn d8_receivers_equal_naive(
+        (tied, tied_cs) in grid_strategy(),
+        (real, real_cs) in real_grid_strategy(),
+    ) {
+        for (z, cs) in [(&tied, &tied_cs), (&real, &real_cs)] {
+            let filled = analysis::priority_flood_fill(z);
+            for g in [z, &filled] {
+                prop_assert_eq!(analysis::d8_receivers(g, cs), naive::d8_receivers(g, cs));
+            }
+        }
     }
 
     /// MFD accumulation matches the relaxation reference within 1e-9 relative and conserves
