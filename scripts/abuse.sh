@@ -36,6 +36,7 @@
 # Needs bash, python3 (standard library) and cargo. The server it starts is stopped on exit.
 
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -93,16 +94,8 @@ trap cleanup EXIT INT TERM
 ) >>"$LOG" 2>&1 &
 PID=$!
 echo "abuse.sh: server pid $PID on 127.0.0.1:$PORT (log $LOG); waiting for /healthz"
-for _ in $(seq 1200); do
-    if python3 - "$PORT" <<'EOF' 2>/dev/null; then break; fi
-import socket, sys
-s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=1)
-s.sendall(b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
-assert s.recv(64).startswith(b"HTTP/1.1 200")
-EOF
-    kill -0 "$PID" 2>/dev/null || { echo "abuse.sh: the server exited; see $LOG" >&2; exit 1; }
-    sleep 0.5
-done
+wait_until_up "http://127.0.0.1:$PORT/healthz" "$PID" 600 "$LOG" ||
+    { echo "abuse.sh: the server did not become healthy" >&2; exit 1; }
 # Let the whole-world layers (computed in the background at start) finish: wait until the CPU
 # time stops growing.
 prev=-1

@@ -11,6 +11,7 @@
 #
 # Usage: scripts/admin_world_realism.sh [PORT]   (default 18491; work under target/admin-realism)
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 cd "$(dirname "$0")/.."
 PORT=${1:-18491}
 WORK=target/admin-realism
@@ -27,11 +28,7 @@ S=http://127.0.0.1:$PORT
 TERRASYNTH_STORE_DIR=$WORK/store "$B" serve --listen "127.0.0.1:$PORT" >"$WORK/server.log" 2>&1 &
 pid=$!
 trap 'kill $pid 2>/dev/null || true' EXIT
-for _ in $(seq 600); do
-    curl -sf "$S/worlds" >/dev/null && break
-    kill -0 $pid 2>/dev/null || { cat "$WORK/server.log" >&2; exit 1; }
-    sleep 1
-done
+wait_until_up "$S/healthz" "$pid" 600 "$WORK/server.log" || exit 1
 field() { python3 -c "import json, sys; print(json.load(sys.stdin)['$1'])"; }
 upload() {
     curl -sf -H "$A" -H 'Content-Type: image/tiff' --data-binary "@$1" \

@@ -16,6 +16,7 @@
 # Usage: scripts/browser_test.sh [--no-build] [--bin PATH] [--port N] [--out DIR]
 #        (defaults: target/release/terrasynth, 18090, target/browser)
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -57,12 +58,8 @@ TERRASYNTH_LISTEN="127.0.0.1:$PORT" TERRASYNTH_STORE_DIR="$ROOT/target/browser-s
     "$BIN" serve --config "$ROOT/config/default.toml" >"$SERVER_LOG" 2>&1 &
 SERVER_PID=$!
 trap 'kill "$SERVER_PID" 2>/dev/null; wait "$SERVER_PID" 2>/dev/null || true' EXIT
-for _ in $(seq 300); do
-    if curl -sf "http://127.0.0.1:$PORT/healthz" >/dev/null; then break; fi
-    kill -0 "$SERVER_PID" 2>/dev/null || { log "the server exited:"; cat "$SERVER_LOG" >&2; exit 1; }
-    sleep 1
-done
-curl -sf "http://127.0.0.1:$PORT/healthz" >/dev/null || { log "the server did not become healthy"; exit 1; }
+wait_until_up "http://127.0.0.1:$PORT/healthz" "$SERVER_PID" 300 "$SERVER_LOG" ||
+    { log "the server did not become healthy"; exit 1; }
 log "server up on port $PORT; running the browser test"
 node ${MAP_TEST:-tests/browser/map_test.mjs} --url "http://127.0.0.1:$PORT" --out "$OUT"
 # The instance tiles (#17) rendered by MapLibre at zooms 15 and 16 (the README picture).

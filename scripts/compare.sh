@@ -35,6 +35,7 @@
 #   -h, --help        this help
 
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PORT=18180
@@ -140,13 +141,9 @@ trap 'exit 130' INT
 trap 'exit 143' TERM
 
 wait_http() {
-    # wait_http URL PID NAME: until URL answers (any HTTP status), or the process died.
-    local url="$1" pid="$2" name="$3" start=$SECONDS
-    until curl -s -o /dev/null --max-time 2 "$url"; do
-        kill -0 "$pid" 2>/dev/null || die "$name exited while starting (logs in $WORK)"
-        ((SECONDS - start < 300)) || die "$name did not answer within 300 s (logs in $WORK)"
-        sleep 0.2
-    done
+    # wait_http URL PID NAME LOG: until URL answers (any HTTP status); dies if the process exits
+    # first or 300 s pass.
+    wait_until_up "$1" "$2" 300 "$4" any || die "$3 did not start (logs in $WORK)"
 }
 
 # 4. terrasynth, export of the trace's bytes.
@@ -156,7 +153,7 @@ wait_http() {
         --listen "$HOST:$TS_PORT"
 ) >"$WORK/terrasynth.log" 2>&1 &
 PIDS+=($!)
-wait_http "http://$HOST:$TS_PORT/healthz" "${PIDS[0]}" terrasynth
+wait_http "http://$HOST:$TS_PORT/healthz" "${PIDS[0]}" terrasynth "$WORK/terrasynth.log"
 log "fetching the $N trace tiles from terrasynth into $WORK/tiles"
 awk -v b="http://$HOST:$TS_PORT" -v d="$WORK/tiles" \
     '{ printf "url = \"%s%s\"\noutput = \"%s%s\"\n", b, $0, d, $0 }' "$WORK/paths" >"$WORK/fetch.curl"
@@ -214,10 +211,10 @@ http {
 EOF
 "$NGINX" -p "$WORK/nginx" -c "$WORK/nginx/nginx.conf" >"$WORK/nginx/stdout.log" 2>&1 &
 PIDS+=($!)
-wait_http "http://$HOST:$NGINX_PORT/" "${PIDS[1]}" nginx
+wait_http "http://$HOST:$NGINX_PORT/" "${PIDS[1]}" nginx "$WORK/nginx/error.log"
 martin --listen-addresses "$HOST:$MARTIN_PORT" "$WORK/elevation.mbtiles" >"$WORK/martin.log" 2>&1 &
 PIDS+=($!)
-wait_http "http://$HOST:$MARTIN_PORT/health" "${PIDS[2]}" martin
+wait_http "http://$HOST:$MARTIN_PORT/health" "${PIDS[2]}" martin "$WORK/martin.log"
 
 sed -e "s#^#http://$HOST:$TS_PORT#" "$WORK/paths" >"$WORK/terrasynth.urls"
 sed -e "s#^#http://$HOST:$NGINX_PORT#" "$WORK/paths" >"$WORK/nginx.urls"

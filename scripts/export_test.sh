@@ -13,6 +13,7 @@
 # Usage: scripts/export_test.sh [--bin PATH] (default target/debug/terrasynth, built by
 # `cargo test`/`cargo build`; .ci/run runs it after the tests).
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 cd "$(dirname "$0")/.."
 
 PMTILES_VERSION=3.8.1
@@ -43,11 +44,8 @@ cleanup() {
     if [[ -n "$EXPORTER" ]]; then kill -9 "$EXPORTER" 2>/dev/null || true; fi
 }
 trap cleanup EXIT
-for _ in $(seq 1 600); do
-    if curl -fsS "http://127.0.0.1:$PORT/healthz" >/dev/null 2>&1; then break; fi
-    if ! kill -0 "$SERVER" 2>/dev/null; then echo "server exited:"; cat "$OUT/server.log"; exit 1; fi
-    sleep 0.5
-done
+wait_until_up "http://127.0.0.1:$PORT/healthz" "$SERVER" 300 "$OUT/server.log" ||
+    { echo "export-test: the server did not become healthy" >&2; exit 1; }
 
 export_to() { # FORMAT OUTPUT [extra args]
     local format=$1 output=$2

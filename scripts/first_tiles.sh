@@ -21,6 +21,7 @@
 #   --port N          port on 127.0.0.1 (default 18095)
 #   --settle S        seconds between start and the elevation part's first request (default 8)
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BIN="$ROOT/target/release/terrasynth"
@@ -65,12 +66,7 @@ start_server() {
     (cd "$ROOT" && exec env TERRASYNTH_STORE_DIR="$STORE_DIR" TERRASYNTH_CACHE_MB=512 \
         "$BIN" serve --listen "127.0.0.1:$PORT") >"$LOG" 2>&1 &
     SERVER_PID=$!
-    local start=$SECONDS
-    until curl -fs -o /dev/null --max-time 2 "$S/healthz"; do
-        kill -0 "$SERVER_PID" 2>/dev/null || { tail -n 20 "$LOG" >&2; die "the server exited"; }
-        ((SECONDS - start < 300)) || die "the server was not healthy after 300 s (log: $LOG)"
-        sleep 0.5
-    done
+    wait_until_up "$S/healthz" "$SERVER_PID" 300 "$LOG" || die "the server did not become healthy"
 }
 
 # timed LABEL PATH: one request, its status and seconds.

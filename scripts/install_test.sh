@@ -7,6 +7,7 @@
 #
 # Usage: scripts/install_test.sh
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 cd "$(dirname "$0")/.."
 src=$PWD
 root=$(mktemp -d)
@@ -25,11 +26,8 @@ TERRASYNTH_STORE_DIR="$elsewhere/store" "$root/bin/terrasynth" serve --listen "1
     >"$elsewhere/server.log" 2>&1 &
 pid=$!
 S=http://127.0.0.1:$port
-for _ in $(seq 1200); do
-    curl -sf "$S/healthz" >/dev/null && break
-    kill -0 "$pid" 2>/dev/null || { cat "$elsewhere/server.log"; echo "install-test: the server died" >&2; exit 1; }
-    sleep 0.5
-done
+wait_until_up "$S/healthz" "$pid" 600 "$elsewhere/server.log" ||
+    { echo "install-test: the server did not become healthy" >&2; exit 1; }
 check() { # path expected-content-type
     local got
     got=$(curl -s -o /dev/null -w '%{http_code} %{content_type}' "$S$1")

@@ -54,6 +54,7 @@
 # Needs bash, curl, python3 (standard library only), cargo (to build and to install oha).
 
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
@@ -203,19 +204,8 @@ start_server() {
     ) >"$logfile" 2>&1 &
     SERVER_PID=$!
     local start=$SECONDS
-    until curl -fs -o /dev/null --max-time 2 "$BASE/healthz"; do
-        if ! kill -0 "$SERVER_PID" 2>/dev/null; then
-            wait "$SERVER_PID" 2>/dev/null || true
-            SERVER_PID=""
-            tail -n 20 "$logfile" >&2 || true
-            die "server '$name' exited before becoming healthy (log: $logfile)"
-        fi
-        if ((SECONDS - start >= HEALTH_TIMEOUT)); then
-            tail -n 20 "$logfile" >&2 || true
-            die "server '$name' not healthy after ${HEALTH_TIMEOUT}s (log: $logfile)"
-        fi
-        sleep 0.2
-    done
+    wait_until_up "$BASE/healthz" "$SERVER_PID" "$HEALTH_TIMEOUT" "$logfile" ||
+        die "server '$name' did not become healthy (log: $logfile)"
     log "server '$name' (pid $SERVER_PID) healthy after $((SECONDS - start)) s"
 }
 

@@ -12,6 +12,7 @@
 #
 # Usage: scripts/readme_test.sh [--bin PATH]   (default: target/release/terrasynth, built if absent)
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 cd "$(dirname "$0")/.."
 root=$PWD
 bin=target/release/terrasynth
@@ -38,12 +39,8 @@ export TERRASYNTH_STORE_DIR=$work/store
 "$bin" serve --listen "127.0.0.1:$port" >"$work/server.log" 2>&1 &
 server_pid=$!
 echo "readme-test: server on port $port (log: $work/server.log)"
-for _ in $(seq 1200); do
-    curl -sf "http://127.0.0.1:$port/healthz" >/dev/null && break
-    kill -0 "$server_pid" 2>/dev/null || { cat "$work/server.log"; echo "readme-test: the server died" >&2; exit 1; }
-    sleep 0.5
-done
-curl -sf "http://127.0.0.1:$port/healthz" >/dev/null || { echo "readme-test: server not healthy" >&2; exit 1; }
+wait_until_up "http://127.0.0.1:$port/healthz" "$server_pid" 600 "$work/server.log" ||
+    { echo "readme-test: the server did not become healthy" >&2; exit 1; }
 
 # The blocks, adapted as described above, one file each.
 python3 - "$work" "$port" "$bin" <<'PY'

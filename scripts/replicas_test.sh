@@ -30,6 +30,7 @@
 # Needs bash, curl, python3 (standard library), cargo (to build), apt-get (for nginx). Not in
 # .ci/run: the first start builds the default dictionary, and the whole run takes minutes.
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BIN=""
@@ -105,19 +106,17 @@ start_replica() {
     PIDS+=($!)
 }
 wait_healthy() {
-    local deadline=$((SECONDS + 900))
-    until curl -fsS "$1/healthz" >/dev/null 2>&1; do
-        ((SECONDS < deadline)) || die "$1 did not become healthy"
-        sleep 0.2
-    done
+    # wait_healthy URL PID LOG: until URL/healthz answers 200 (up to 900 s: the first start may
+    # build the default dictionary); dies if the process exits first.
+    wait_until_up "$1/healthz" "$2" 900 "$3" || die "$1 did not become healthy"
 }
 log "replica 1 on $R1 (store $STORE)"
 start_replica "$P1" "$WORK/replica1.log"
 R1_PID=${PIDS[-1]}
-wait_healthy "$R1"
+wait_healthy "$R1" "$R1_PID" "$WORK/replica1.log"
 log "replica 2 on $R2 (same store)"
 start_replica "$P2" "$WORK/replica2.log"
-wait_healthy "$R2"
+wait_healthy "$R2" "${PIDS[-1]}" "$WORK/replica2.log"
 
 mkdir -p "$WORK/nginx/cache" "$WORK/nginx/tmp"
 chmod -R 777 "$WORK/nginx"
@@ -141,7 +140,8 @@ http {
 EOF
 "$NGINX" -e "$WORK/nginx/error.log" -t -q -p "$WORK/nginx" -c "$WORK/nginx/nginx.conf" || die "nginx refuses the configuration"
 "$NGINX" -e "$WORK/nginx/error.log" -p "$WORK/nginx" -c "$WORK/nginx/nginx.conf"
-wait_healthy "$NX"
+# nginx daemonises: its master's pid is in its pid file.
+wait_healthy "$NX" "$(cat "$WORK/nginx/nginx.pid")" "$WORK/nginx/error.log"
 log "nginx on $NX in front of both"
 
 # 3a. A world created on replica 1 is served by replica 2.

@@ -7,6 +7,7 @@
 # `cargo test`, which .ci/run runs first: then `--no-build` reuses it), or the release one.
 # Usage: scripts/schemathesis.sh [--release] [--no-build] [extra schemathesis args]
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 cd "$(dirname "$0")/.."
 
 SCHEMATHESIS_VERSION=4.32.5
@@ -45,11 +46,8 @@ TERRASYNTH_ADMIN_TOKEN="$TOKEN" TERRASYNTH_STORE_DIR="$STORE" TERRASYNTH_CACHE_M
 SERVER=$!
 trap 'kill "$SERVER" 2>/dev/null || true; wait "$SERVER" 2>/dev/null || true' EXIT
 
-for _ in $(seq 1 600); do
-    if curl -fsS "http://127.0.0.1:$PORT/healthz" >/dev/null 2>&1; then break; fi
-    if ! kill -0 "$SERVER" 2>/dev/null; then echo "server exited:"; cat "$LOG"; exit 1; fi
-    sleep 0.5
-done
+wait_until_up "http://127.0.0.1:$PORT/healthz" "$SERVER" 300 "$LOG" ||
+    { echo "schemathesis: the server did not become healthy" >&2; exit 1; }
 
 # One worker: with several, CPython 3.11's `ast` module (used by hypothesis to describe strategies)
 # is not thread-safe and schemathesis intermittently reports an internal "AST constructor recursion
