@@ -1,7 +1,7 @@
 //! Depression filling by Priority-Flood (Barnes, Lehman & Mulla 2014, "Priority-Flood: An
 //! optimal depression-filling and watershed-labeling algorithm for digital elevation models"),
-//! in its improved form: a priority queue for cells that keep their own elevation plus a plain
-//! FIFO for cells raised inside a depression, which never need re-sorting.
+//! in its improved form: a priority queue (a 4-ary heap) for cells that keep their own elevation
+//! plus a plain FIFO for cells raised inside a depression, which never need re-sorting.
 //!
 //! All border cells are outlets, and so are NaN cells (nodata): they seed the flood and keep
 //! their value, and their neighbours drain into them. Output is always `≥` the input.
