@@ -83,17 +83,9 @@ pub(crate) struct QuadHeap<E> {
 
 impl<E: Ord + Copy> MinQueue<E> for QuadHeap<E> {
     fn push(&mut self, e: E) {
-        let mut i = self.v.len();
+        let hole = self.v.len();
         self.v.push(e);
-        while i > 0 {
-            let parent = (i - 1) / 4;
-            if self.v[parent] <= e {
-                break;
-            }
-            self.v[i] = self.v[parent];
-            i = parent;
-        }
-        self.v[i] = e;
+        self.sift_up(hole, e);
     }
 
     fn peek(&self) -> Option<E> {
@@ -125,16 +117,23 @@ impl<E: Ord + Copy> MinQueue<E> for QuadHeap<E> {
             self.v[i] = mv;
             i = m;
         }
+        self.sift_up(i, last);
+        Some(top)
+    }
+}
+
+impl<E: Ord + Copy> QuadHeap<E> {
+    /// Puts `e` into the hole at `i`, moving larger parents down into the hole on the way up.
+    fn sift_up(&mut self, mut i: usize, e: E) {
         while i > 0 {
             let parent = (i - 1) / 4;
-            if self.v[parent] <= last {
+            if self.v[parent] <= e {
                 break;
             }
             self.v[i] = self.v[parent];
             i = parent;
         }
-        self.v[i] = last;
-        Some(top)
+        self.v[i] = e;
     }
 }
 

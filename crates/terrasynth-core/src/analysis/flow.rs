@@ -59,14 +59,13 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
             }
             let n0 = c0.wrapping_add_signed(dc);
             let n1 = c1.wrapping_add_signed(dc);
-            d8_direction(
-                &z[r * cols + c0..r * cols + c1],
-                &z[nr * cols + n0..nr * cols + n1],
-                dist[d],
-                d as u64,
-                &mut best[c0..c1],
-                &mut codes[c0..c1],
-            );
+            let direction = Direction {
+                here: &z[r * cols + c0..r * cols + c1],
+                there: &z[nr * cols + n0..nr * cols + n1],
+                dist: dist[d],
+                code: d as u64,
+            };
+            d8_direction(&direction, &mut best[c0..c1], &mut codes[c0..c1]);
         }
         for (o, &code) in out[r * cols..(r + 1) * cols].iter_mut().zip(&codes) {
             *o = code as u8;
@@ -76,39 +75,44 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
         .unwrap_or_else(|_| Array2::from_elem((rows, cols), D8_NONE))
 }
 
-/// One direction of [`d8_receivers`] across part of a row: each cell whose drop to its
-/// neighbour (`here − there`, in `f64`) is positive and whose slope `drop / dist` beats its
-/// best so far takes direction `d`.
-#[inline]
-fn d8_direction(
-    here: &[f32],
-    there: &[f32],
+/// One direction of [`d8_receivers`] across part of a row: the cells' elevations, their
+/// neighbours' in that direction, the distance to them and the direction's code.
+struct Direction<'a> {
+    here: &'a [f32],
+    there: &'a [f32],
     dist: f64,
-    d: u64,
-    best: &mut [f64],
-    codes: &mut [u64],
-) {
+    code: u64,
+}
+
+/// Each cell whose drop to its neighbour in `dir` (`here − there`, in `f64`) is positive and
+/// whose slope `drop / dist` beats its best so far takes the direction's code.
+#[inline]
+fn d8_direction(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
     #[cfg(target_arch = "x86_64")]
     match Isa::current() {
         // SAFETY: `Isa::current` returns these only when the CPU reports the feature.
-        Isa::Avx512 => return unsafe { d8_direction_avx512(here, there, dist, d, best, codes) },
-        Isa::Avx2 => return unsafe { d8_direction_avx2(here, there, dist, d, best, codes) },
+        Isa::Avx512 => return unsafe { d8_direction_avx512(dir, best, codes) },
+        Isa::Avx2 => return unsafe { d8_direction_avx2(dir, best, codes) },
         Isa::Baseline => {}
     }
-    d8_direction_plain(here, there, dist, d, best, codes);
+    d8_direction_plain(dir, best, codes);
 }
 
 #[inline(always)]
-fn d8_direction_plain(
-    here: &[f32],
-    there: &[f32],
-    dist: f64,
-    d: u64,
-    best: &mut [f64],
-    codes: &mut [u64],
-) {
-    let n = here.len().min(there.len()).min(best.len()).min(codes.len());
-    let (here, there, best, codes) = (&here[..n], &there[..n], &mut best[..n], &mut codes[..n]);
+fn d8_direction_plain(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
+    let n = dir
+        .here
+        .len()
+        .min(dir.there.len())
+        .min(best.len())
+        .min(codes.len());
+    let (here, there, best, codes) = (
+        &dir.here[..n],
+        &dir.there[..n],
+        &mut best[..n],
+        &mut codes[..n],
+    );
+    let (dist, code) = (dir.dist, dir.code);
     for i in 0..n {
         let drop = f64::from(here[i]) - f64::from(there[i]);
         let slope = drop / dist;
@@ -116,34 +120,20 @@ fn d8_direction_plain(
         // vectorises.
         let take = (drop > 0.0) & (slope > best[i]);
         best[i] = if take { slope } else { best[i] };
-        codes[i] = if take { d } else { codes[i] };
+        codes[i] = if take { code } else { codes[i] };
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn d8_direction_avx2(
-    here: &[f32],
-    there: &[f32],
-    dist: f64,
-    d: u64,
-    best: &mut [f64],
-    codes: &mut [u64],
-) {
-    d8_direction_plain(here, there, dist, d, best, codes);
+fn d8_direction_avx2(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
+    d8_direction_plain(dir, best, codes);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn d8_direction_avx512(
-    here: &[f32],
-    there: &[f32],
-    dist: f64,
-    d: u64,
-    best: &mut [f64],
-    codes: &mut [u64],
-) {
-    d8_direction_plain(here, there, dist, d, best, codes);
+fn d8_direction_avx512(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
+    d8_direction_plain(dir, best, codes);
 }
 
 /// Row-major index of the receiver of cell `i`, if any.
@@ -350,13 +340,19 @@ mod tests {
                 })
                 .collect();
             let start: Vec<f64> = (0..n).map(|i| [0.0, 0.1, 2.5][i % 3]).collect();
+            let dir = Direction {
+                here: &here,
+                there: &there,
+                dist: 30.0,
+                code: 3,
+            };
             let run = |f: &dyn Fn(&mut [f64], &mut [u64])| {
                 let mut best = start.clone();
                 let mut codes = vec![u64::from(D8_NONE); n];
                 f(&mut best, &mut codes);
                 (best.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), codes)
             };
-            let plain = run(&|b, c| d8_direction_plain(&here, &there, 30.0, 3, b, c));
+            let plain = run(&|b, c| d8_direction_plain(&dir, b, c));
             if n >= 31 {
                 // The rows exercise both outcomes.
                 assert!(plain.1.contains(&3));
@@ -366,13 +362,12 @@ mod tests {
             {
                 if std::arch::is_x86_feature_detected!("avx2") {
                     // SAFETY: the CPU reports AVX2.
-                    let v = run(&|b, c| unsafe { d8_direction_avx2(&here, &there, 30.0, 3, b, c) });
+                    let v = run(&|b, c| unsafe { d8_direction_avx2(&dir, b, c) });
                     assert_eq!(v, plain);
                 }
                 if std::arch::is_x86_feature_detected!("avx512f") {
                     // SAFETY: the CPU reports AVX-512F.
-                    let v =
-                        run(&|b, c| unsafe { d8_direction_avx512(&here, &there, 30.0, 3, b, c) });
+                    let v = run(&|b, c| unsafe { d8_direction_avx512(&dir, b, c) });
                     assert_eq!(v, plain);
                 }
             }
