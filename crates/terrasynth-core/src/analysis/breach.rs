@@ -118,6 +118,37 @@ fn is_pit(z: &[f32], cols: usize, origin: (i64, i64), r: usize, c: usize) -> boo
     })
 }
 
+/// `lowest[k]`: the lowest of the 8 neighbours of cell `(r, cols.start + k)` of the row-major
+/// `z` (`cols` wide; `r` and the columns not on its border) — always one of their values, so
+/// `lowest[k] < z` means that a neighbour lies strictly below the cell. Row-wise minima of
+/// shifted rows, so the loop vectorises.
+fn lowest_neighbours(
+    z: &[f32],
+    width: usize,
+    r: usize,
+    cols: std::ops::Range<usize>,
+    lowest: &mut Vec<f32>,
+) {
+    let lower = |a: f32, b: f32| if b < a { b } else { a };
+    let (c0, n) = (cols.start, cols.len());
+    let row = |rr: usize, shift: usize| &z[rr * width + c0 - 1 + shift..][..n];
+    lowest.clear();
+    lowest.extend_from_slice(row(r - 1, 0));
+    for (rr, shift) in [
+        (r - 1, 1),
+        (r - 1, 2),
+        (r, 0),
+        (r, 2),
+        (r + 1, 0),
+        (r + 1, 1),
+        (r + 1, 2),
+    ] {
+        for (l, &x) in lowest.iter_mut().zip(row(rr, shift)) {
+            *l = lower(*l, x);
+        }
+    }
+}
+
 /// A heap entry of the search: cost and row-major index in the search box (min-heap by cost,
 /// then index; within one box the index order is the global order).
 #[derive(Clone, Copy, PartialEq)]
@@ -143,8 +174,13 @@ impl PartialOrd for Item {
     }
 }
 
-/// The channel of one pit: cells of `z` with their channel values (the pit itself excluded).
+/// Channels of pits, one after the other: cells of `z` with their channel values (the pits
+/// themselves excluded).
 type Channel = Vec<((usize, usize), f32)>;
+
+/// Pits per task of [`breach_pits_with`]: each task appends its pits' channels, in pit order, to
+/// one buffer.
+const PITS_PER_TASK: usize = 64;
 
 /// Reusable buffers of the search over a `(2·radius + 1)²` box, framed by one sentinel cell on
 /// every side (so neighbours need no bounds test). Entries are valid for the current search only
@@ -163,6 +199,8 @@ struct Search {
     /// Neighbour offsets in the framed box and their length costs.
     steps: [(isize, f64); 8],
     heap: BinaryHeap<Item>,
+    /// The path of the current channel, goal last.
+    path: Vec<(usize, usize)>,
     /// Row and column of every framed-box cell (no division in the search loop).
     rc: Vec<(u32, u32)>,
     /// Offset in `z` of every framed-box cell from the box's first cell, for rows `offs_cols`
@@ -200,6 +238,7 @@ impl Search {
             generation: 0,
             steps,
             heap: BinaryHeap::new(),
+            path: Vec::new(),
             rc: (0..side * side)
                 .map(|c| ((c / side) as u32, (c % side) as u32))
                 .collect(),
@@ -209,18 +248,19 @@ impl Search {
     }
 
     /// The channel from pit `(r, c)` of the row-major `z` (`cols` wide; the pit at least
-    /// `radius` cells from every edge), if a strictly lower cell lies within the radius.
+    /// `radius` cells from every edge), appended to `out` if a strictly lower cell lies within
+    /// the radius (and `f32` holds a descending grade to it); `out` is left as it was otherwise.
     fn channel(
         &mut self,
         z: &[f32],
         cols: usize,
-        r: usize,
-        c: usize,
+        (r, c): (usize, usize),
         limit: usize,
-    ) -> Option<Channel> {
+        out: &mut Channel,
+    ) {
         let (side, radius) = (self.side, self.radius);
         if limit == 0 {
-            return None;
+            return;
         }
         let (lo, hi) = (
             radius + 1 - limit.min(radius),
@@ -288,9 +328,12 @@ impl Search {
                 }
             }
         }
-        let goal = goal?;
+        let Some(goal) = goal else {
+            return;
+        };
         let (r0, c0) = (r - radius, c - radius);
-        let mut path = Vec::new();
+        let path = &mut self.path;
+        path.clear();
         let mut cur = goal;
         while cur != start {
             // Never a frame cell: those are never pushed.
@@ -298,29 +341,32 @@ impl Search {
             cur = self.pred[cur] as usize;
         }
         path.reverse();
-        profile(z, cols, zq, &path)
+        profile(z, cols, zq, path, out);
     }
 }
 
 /// The straight, strictly descending channel values of the cells of `path` before its end (the
 /// path starts next to a pit of value `zq` and ends at a strictly lower cell, which keeps its
-/// value), or `None` when `f32` cannot hold a strictly descending grade between them.
-fn profile(z: &[f32], cols: usize, zq: f32, path: &[(usize, usize)]) -> Option<Channel> {
-    let (&end, inner) = path.split_last()?;
+/// value), appended to `out`; nothing is appended when `f32` cannot hold a strictly descending
+/// grade between them.
+fn profile(z: &[f32], cols: usize, zq: f32, path: &[(usize, usize)], out: &mut Channel) {
+    let Some((&end, inner)) = path.split_last() else {
+        return;
+    };
     let zn = z[end.0 * cols + end.1];
     let n = path.len() as f64;
     let drop = f64::from(zq) - f64::from(zn);
     let mut prev = zq;
-    let mut out = Vec::with_capacity(inner.len());
+    let len = out.len();
     for (i, &p) in inner.iter().enumerate() {
         let t = (f64::from(zq) - drop * (i + 1) as f64 / n) as f32;
         if !(t < prev && t > zn) {
-            return None;
+            out.truncate(len);
+            return;
         }
         prev = t;
         out.push((p, t));
     }
-    Some(out)
 }
 
 /// The frame [`breach_pits`] consumes on each side: twice the channel reach (a pit up to
@@ -339,6 +385,7 @@ pub fn breach_pits(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> Array2
 
 /// [`breach_pits`] with a reach per pit by [`BreachRule`]; the frame is
 /// [`breach_margin`]`(rule.radius)`.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(low < z)`: a NaN cell is tested, not skipped.
 pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -> Array2<f32> {
     let radius = rule.radius.max(RISE_REACH);
     let rule = BreachRule { radius, ..rule };
@@ -354,19 +401,31 @@ pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -
     // Pits whose channels can reach the inner window lie within `radius` of it.
     let pits: Vec<(usize, usize)> = (radius..rows - radius)
         .into_par_iter()
-        .flat_map_iter(|r| {
-            (radius..cols - radius)
-                .filter(move |&c| is_pit(v, cols, origin, r, c))
-                .map(move |c| (r, c))
+        .map_init(Vec::new, |lowest, r| {
+            lowest_neighbours(v, cols, r, radius..cols - radius, lowest);
+            let here = &v[r * cols + radius..r * cols + cols - radius];
+            here.iter()
+                .zip(lowest.iter())
+                .enumerate()
+                // A cell with a strictly lower neighbour is no pit; the others are tested.
+                .filter(|&(k, (&z, &low))| !(low < z) && is_pit(v, cols, origin, r, radius + k))
+                .map(|(k, _)| (r, radius + k))
+                .collect::<Vec<_>>()
         })
+        .flatten_iter()
         .collect();
+    // Channels in pit order (so that equal minima keep the same bits whatever the threads).
     let channels: Vec<Channel> = pits
-        .par_iter()
+        .par_chunks(PITS_PER_TASK)
         .map_init(
             || Search::new(radius),
-            |s, &(r, c)| {
-                let limit = rule.reach(v, cols, r, c, v[r * cols + c]);
-                s.channel(v, cols, r, c, limit).unwrap_or_default()
+            |s, task| {
+                let mut out = Channel::new();
+                for &(r, c) in task {
+                    let limit = rule.reach(v, cols, r, c, v[r * cols + c]);
+                    s.channel(v, cols, (r, c), limit, &mut out);
+                }
+                out
             },
         )
         .collect();
@@ -529,7 +588,9 @@ pub fn breach_pits_naive_with(
             path.reverse();
             let flat = z.as_standard_layout();
             let v = flat.as_slice().unwrap_or(&[]);
-            for (p, t) in profile(v, cols, zq, &path).unwrap_or_default() {
+            let mut channel = Channel::new();
+            profile(v, cols, zq, &path, &mut channel);
+            for (p, t) in channel {
                 if t < out[p] {
                     out[p] = t;
                 }
