@@ -407,6 +407,39 @@ pub struct Matcher {
 /// after one vectorised test).
 const SCAN_CHUNK: usize = 16;
 
+/// The largest value of a chunk of dot products, by a tree of pairwise maxima over a full chunk
+/// (vectorised; a plain fold over a shorter one). It only chooses [`Matcher::best_k`]'s seeds,
+/// which do not change its result: a NaN may come out, and then the chunk gives no seed.
+#[inline(always)]
+fn chunk_max(chunk: &[f32]) -> f32 {
+    let pick = |a: f32, b: f32| if b > a { b } else { a };
+    let Ok(c) = <&[f32; SCAN_CHUNK]>::try_from(chunk) else {
+        return chunk.iter().fold(f32::NEG_INFINITY, |m, &d| pick(m, d));
+    };
+    let mut m = [0.0f32; SCAN_CHUNK / 2];
+    for (i, v) in m.iter_mut().enumerate() {
+        *v = pick(c[i], c[i + SCAN_CHUNK / 2]);
+    }
+    let mut width = SCAN_CHUNK / 2;
+    while width > 1 {
+        width /= 2;
+        for i in 0..width {
+            m[i] = pick(m[i], m[i + width]);
+        }
+    }
+    m[0]
+}
+
+/// The index of the first value of `chunk` equal to `v` (at most [`SCAN_CHUNK`] values).
+#[inline(always)]
+fn first_equal(chunk: &[f32], v: f32) -> Option<usize> {
+    let mask = chunk
+        .iter()
+        .enumerate()
+        .fold(0u32, |m, (k, &x)| m | (u32::from(x == v) << k));
+    (mask != 0).then(|| mask.trailing_zeros() as usize)
+}
+
 /// Atoms per block of the dot-product kernel: the block's accumulators stay in registers.
 pub const ATOM_BLOCK: usize = 64;
 
@@ -523,6 +556,7 @@ impl Matcher {
     /// bound (elevation plus every other weight), or else every atom's cheaper bound, lies below
     /// `floor`. `!(b < floor)`, not `b >= floor`: a NaN bound is never skipped.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
     fn chunk_bounds<'t>(
         &self,
         q: &Query,
@@ -612,8 +646,43 @@ impl Matcher {
     /// order [`best_match`](Matcher::best_match) uses, so `out[0]` is its atom). Atoms whose
     /// score is NaN are never ranked. Identical to [`best_k_naive`]; pruned like
     /// [`Matcher::best_match`], against the `k`-th best score so far.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn best_k(&self, q: &Query, scratch: &mut MatchScratch, k: usize, out: &mut Vec<Ranked>) {
+        #[cfg(target_arch = "x86_64")]
+        match self.isa {
+            // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
+            Isa::Avx512 => return unsafe { self.best_k_avx512(q, scratch, k, out) },
+            Isa::Avx2 => return unsafe { self.best_k_avx2(q, scratch, k, out) },
+            Isa::Baseline => {}
+        }
+        self.best_k_scan(q, scratch, k, out);
+    }
+
+    /// [`Matcher::best_k`] compiled for AVX2: the same IEEE operations in the same order (no
+    /// fused multiply-add), hence the same result; the chunk tests and bounds run on wider
+    /// vectors.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn best_k_avx2(&self, q: &Query, scratch: &mut MatchScratch, k: usize, out: &mut Vec<Ranked>) {
+        self.best_k_scan(q, scratch, k, out);
+    }
+
+    /// [`Matcher::best_k`] compiled for AVX-512 (the same result, as [`Matcher::best_k_avx2`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn best_k_avx512(
+        &self,
+        q: &Query,
+        scratch: &mut MatchScratch,
+        k: usize,
+        out: &mut Vec<Ranked>,
+    ) {
+        self.best_k_scan(q, scratch, k, out);
+    }
+
+    /// The search of [`Matcher::best_k`], inlined into each build.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    fn best_k_scan(&self, q: &Query, scratch: &mut MatchScratch, k: usize, out: &mut Vec<Ranked>) {
         out.clear();
         if k == 0 {
             return;
@@ -631,30 +700,27 @@ impl Matcher {
         let rest = w.rest() + PRUNE_SLACK;
         let mut tight = [0.0f32; SCAN_CHUNK];
         let bound = |d: f32| w.elevation * (0.5 * (1.0 + d)) + rest;
-        // Seeds: the `k` atoms with the largest dot products (ties: lower index), scored first
-        // so that the `k`-th best score, the pruning floor, starts high.
+        // Seeds: the largest dot product of each chunk (its first index on ties), the `k` largest
+        // of those (ties: lower index), scored first so that the `k`-th best score, the pruning
+        // floor, starts high. Any `k` atoms would give the same ranking (they are ranked first
+        // and skipped by the scan); these are nearly the `k` largest dot products, for one
+        // vectorised maximum per chunk.
         let seeds = &mut scratch.seeds;
         seeds.clear();
         for (c, chunk) in dots.chunks(SCAN_CHUNK).enumerate() {
-            // Once `k` seeds are held, a chunk in which no value beats the `k`-th is skipped
-            // whole: that value only grows, so the per-atom test below would skip each of them.
-            if seeds.len() == k {
-                let floor = dots[seeds[k - 1]];
-                if !chunk.iter().fold(false, |any, &d| any | (d > floor)) {
-                    continue;
-                }
+            let top = chunk_max(chunk);
+            if seeds.len() == k && !(top > dots[seeds[k - 1]]) {
+                continue;
             }
-            for (j, &d) in chunk.iter().enumerate() {
-                if seeds.len() == k && !(d > dots[seeds[k - 1]]) {
-                    continue;
-                }
-                let at = seeds
-                    .iter()
-                    .position(|&o| d > dots[o])
-                    .unwrap_or(seeds.len());
-                seeds.insert(at, c * SCAN_CHUNK + j);
-                seeds.truncate(k);
-            }
+            let Some(j) = first_equal(chunk, top) else {
+                continue;
+            };
+            let at = seeds
+                .iter()
+                .position(|&o| top > dots[o])
+                .unwrap_or(seeds.len());
+            seeds.insert(at, c * SCAN_CHUNK + j);
+            seeds.truncate(k);
         }
         for &i in seeds.iter() {
             let score = combine(w, &self.dict, &self.prepared, q, s, i, dots[i]);
