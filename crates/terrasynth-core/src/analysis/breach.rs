@@ -25,12 +25,12 @@
 //! every pit whose search succeeds drains.
 
 use std::cmp::Ordering;
-use std::collections::BinaryHeap;
 
 use ndarray::{s, Array2};
 use rayon::prelude::*;
 
 use super::common::D8_OFFSETS;
+use super::flood::{MinQueue, QuadHeap};
 
 /// Cost of one (cardinal) step of a channel, metres: prefers short channels among equally deep
 /// ones.
@@ -149,30 +149,11 @@ fn lowest_neighbours(
     }
 }
 
-/// A heap entry of the search: cost and row-major index in the search box (min-heap by cost,
-/// then index; within one box the index order is the global order).
-#[derive(Clone, Copy, PartialEq)]
-struct Item {
-    cost: f64,
-    cell: u32,
-}
-
-impl Eq for Item {}
-
-impl Ord for Item {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .cost
-            .total_cmp(&self.cost)
-            .then_with(|| other.cell.cmp(&self.cell))
-    }
-}
-
-impl PartialOrd for Item {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
+/// A queue entry of the search: the bits of its cost (a non-negative `f64`, whose bits order
+/// like its value) and its row-major index in the search box; popped smallest first (by cost,
+/// then index; within one box the index order is the global order). Entries are distinct, so
+/// any correct queue pops them in the same order.
+type Item = (u64, u32);
 
 /// Channels of pits, one after the other: cells of `z` with their channel values (the pits
 /// themselves excluded).
@@ -198,7 +179,7 @@ struct Search {
     generation: u32,
     /// Neighbour offsets in the framed box and their length costs.
     steps: [(isize, f64); 8],
-    heap: BinaryHeap<Item>,
+    heap: QuadHeap<Item>,
     /// The path of the current channel, goal last.
     path: Vec<(usize, usize)>,
     /// Row and column of every framed-box cell (no division in the search loop).
@@ -237,7 +218,7 @@ impl Search {
             done,
             generation: 0,
             steps,
-            heap: BinaryHeap::new(),
+            heap: QuadHeap::default(),
             path: Vec::new(),
             rc: (0..side * side)
                 .map(|c| ((c / side) as u32, (c % side) as u32))
@@ -290,13 +271,10 @@ impl Search {
         let start = (radius + 1) * side + radius + 1;
         self.dist[start] = 0.0;
         self.seen[start] = gen;
-        self.heap.push(Item {
-            cost: 0.0,
-            cell: start as u32,
-        });
+        self.heap.push((0.0f64.to_bits(), start as u32));
         let mut goal = None;
-        while let Some(Item { cost, cell }) = self.heap.pop() {
-            let cell = cell as usize;
+        while let Some((cost, cell)) = self.heap.pop() {
+            let (cost, cell) = (f64::from_bits(cost), cell as usize);
             if self.done[cell] == gen {
                 continue;
             }
@@ -321,10 +299,7 @@ impl Search {
                     self.seen[n] = gen;
                     self.dist[n] = nd;
                     self.pred[n] = cell as u32;
-                    self.heap.push(Item {
-                        cost: nd,
-                        cell: n as u32,
-                    });
+                    self.heap.push((nd.to_bits(), n as u32));
                 }
             }
         }

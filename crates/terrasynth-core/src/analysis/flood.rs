@@ -75,7 +75,8 @@ impl<E: Ord + Copy> MinQueue<E> for BinaryHeap<Reverse<E>> {
 }
 
 /// A 4-ary min-heap: half the depth of a binary heap and a node's children in one cache line,
-/// so a pop compares more but waits for memory less.
+/// so a pop compares more but waits for memory less. The floods' queue, and the least-cost
+/// search's of [`super::breach`].
 #[derive(Debug, Default)]
 pub(crate) struct QuadHeap<E> {
     v: Vec<E>,
@@ -123,6 +124,11 @@ impl<E: Ord + Copy> MinQueue<E> for QuadHeap<E> {
 }
 
 impl<E: Ord + Copy> QuadHeap<E> {
+    /// Removes every entry, keeping the allocation.
+    pub(crate) fn clear(&mut self) {
+        self.v.clear();
+    }
+
     /// Puts `e` into the hole at `i`, moving larger parents down into the hole on the way up.
     fn sift_up(&mut self, mut i: usize, e: E) {
         while i > 0 {
