@@ -9,11 +9,11 @@
 //!   patches;
 //! - class layers: the mean over pixels of the dot product of unit-norm class-probability vectors.
 //!
-//! [`best_match_naive`] is the reference: a full scan scoring every atom with [`score_atom`].
+//! [`best_match_naive`] is the reference: a full scan scoring every atom with [`Matcher::score`].
 //! [`Matcher::best_match`] returns exactly the same atom (ties → lowest index): it computes every
 //! elevation dot product with the atoms stored dimension-major, so the inner loop runs across atoms
 //! and vectorises without changing the per-atom summation order, then prunes atoms whose upper
-//! bound cannot beat the best full score, and scores the rest with the same [`score_atom`].
+//! bound cannot beat the best full score, and scores the rest with the same formula.
 
 use std::sync::Arc;
 
