@@ -143,17 +143,23 @@ fn upsample_patch_with(
     out: &mut [f32],
     rows: &mut Vec<f32>,
 ) {
-    match kernel.n {
-        4 => upsample_patch_n::<4>(kernel, lo_patch, lo, out, rows),
-        8 => upsample_patch_n::<8>(kernel, lo_patch, lo, out, rows),
-        _ => upsample_patch_n::<12>(kernel, lo_patch, lo, out, rows),
+    // Small patches (the matcher's octave measure: 4² → 8²) take a table on a small stack.
+    let small = 2 * lo <= SMALL_TABLE_SIDE;
+    match (kernel.n, small) {
+        (4, true) => upsample_patch_n::<4, SMALL_TABLE_SIDE>(kernel, lo_patch, lo, out, rows),
+        (4, false) => upsample_patch_n::<4, MAX_TABLE_SIDE>(kernel, lo_patch, lo, out, rows),
+        (8, _) => upsample_patch_n::<8, MAX_TABLE_SIDE>(kernel, lo_patch, lo, out, rows),
+        _ => upsample_patch_n::<12, MAX_TABLE_SIDE>(kernel, lo_patch, lo, out, rows),
     }
 }
+
+/// The table side of [`upsample_patch_with`] for small patches.
+const SMALL_TABLE_SIDE: usize = 16;
 
 /// [`upsample_patch_with`] for a kernel of `N` taps per phase: the clamped tap indices and
 /// weights of every high-resolution position are tabulated once, the vertical pass runs along
 /// rows (each output still adds its taps in tap order, so the bits are those of the naive loop).
-fn upsample_patch_n<const N: usize>(
+fn upsample_patch_n<const N: usize, const SIDE: usize>(
     kernel: &UpKernel,
     lo_patch: &[f32],
     lo: usize,
@@ -161,12 +167,12 @@ fn upsample_patch_n<const N: usize>(
     rows: &mut Vec<f32>,
 ) {
     let hi = 2 * lo;
-    if hi > MAX_TABLE_SIDE || N != kernel.n || lo == 0 {
+    if hi > SIDE || N != kernel.n || lo == 0 {
         upsample_patch_naive(kernel, lo_patch, lo, out);
         return;
     }
-    let mut idx = [[0usize; N]; MAX_TABLE_SIDE];
-    let mut wts = [[0.0f32; N]; MAX_TABLE_SIDE];
+    let mut idx = [[0usize; N]; SIDE];
+    let mut wts = [[0.0f32; N]; SIDE];
     for x in 0..hi {
         let (k, w) = kernel.taps(x as i64);
         for t in 0..N {
@@ -191,7 +197,15 @@ fn upsample_patch_n<const N: usize>(
         dst.fill(0.0);
         for t in 0..N {
             let w = wts[r][t];
-            crate::simd::add_scaled(dst, w, &rows[idx[r][t] * hi..idx[r][t] * hi + hi]);
+            let src = &rows[idx[r][t] * hi..idx[r][t] * hi + hi];
+            if hi <= SMALL_TABLE_SIDE {
+                // Rows this short cost more to dispatch than to add.
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += w * s;
+                }
+            } else {
+                crate::simd::add_scaled(dst, w, src);
+            }
         }
     }
 }
