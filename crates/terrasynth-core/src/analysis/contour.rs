@@ -2,8 +2,9 @@
 //! pixel centres ([`contour_segments`]), joined into polylines ([`join_segments`],
 //! [`contour_lines`]).
 //!
-//! Conventions, shared with the naive twin [`contour_segments_naive`](super::naive::contour_segments_naive): a value `v` is *above*
-//! level `L` when `v >= L`; an edge crosses `L` when its two ends are on different sides; the
+//! Conventions, shared with the naive twin
+//! [`contour_segments_naive`](super::naive::contour_segments_naive): a value `v` is *above* level
+//! `L` when `v >= L`; an edge crosses `L` when its two ends are on different sides; the
 //! crossing lies at `t = (L − a) / (b − a)` from the edge's first end `a` (the one with the
 //! smaller row, then column), so that the two cells sharing an edge compute the same point, bit
 //! for bit. A saddle cell (opposite corners on the same side, four crossings) is resolved by the
