@@ -41,30 +41,61 @@ pub fn box_down2(hi: &[f32], side: usize, out: &mut [f32]) {
 /// # Panics
 /// If `x.len() != out.len()`.
 pub fn centre_normalise(x: &[f32], out: &mut [f32]) -> (f32, f32) {
-    assert_eq!(x.len(), out.len(), "centre_normalise: length mismatch");
-    if x.is_empty() {
-        return (0.0, 0.0);
+    let [stats] = centre_normalise_n([x], [out]);
+    stats
+}
+
+/// [`centre_normalise`] of `N` inputs of one length at once, each bit for bit as alone: every
+/// input's sums run in index order, and the `N` chains of additions interleave, so that their
+/// latencies overlap (the amplifier prepares its queries in groups).
+///
+/// # Panics
+/// If the inputs and outputs do not all have the same length.
+pub fn centre_normalise_n<const N: usize>(
+    xs: [&[f32]; N],
+    outs: [&mut [f32]; N],
+) -> [(f32, f32); N] {
+    let len = xs.first().map_or(0, |x| x.len());
+    assert!(
+        xs.iter().all(|x| x.len() == len) && outs.iter().all(|o| o.len() == len),
+        "centre_normalise: length mismatch"
+    );
+    if len == 0 {
+        return [(0.0, 0.0); N];
     }
-    let mut sum = 0.0f64;
-    for &v in x {
-        sum += f64::from(v);
-    }
-    let mean = sum / x.len() as f64;
-    let mut sq = 0.0f64;
-    for &v in x {
-        let d = f64::from(v) - mean;
-        sq += d * d;
-    }
-    let norm = sq.sqrt();
-    if norm > 0.0 && norm.is_finite() {
-        let inv = 1.0 / norm;
-        for (o, &v) in out.iter_mut().zip(x) {
-            *o = ((f64::from(v) - mean) * inv) as f32;
+    let mut sum = [0.0f64; N];
+    for i in 0..len {
+        for (s, x) in sum.iter_mut().zip(&xs) {
+            *s += f64::from(x[i]);
         }
-    } else {
-        out.fill(0.0);
     }
-    (mean as f32, norm as f32)
+    let mean = sum.map(|s| s / len as f64);
+    let mut sq = [0.0f64; N];
+    for i in 0..len {
+        for ((s, x), &m) in sq.iter_mut().zip(&xs).zip(&mean) {
+            let d = f64::from(x[i]) - m;
+            *s += d * d;
+        }
+    }
+    let mut stats = [(0.0f32, 0.0f32); N];
+    for (((out, x), st), (&mean, &sq)) in outs
+        .into_iter()
+        .zip(&xs)
+        .zip(&mut stats)
+        .zip(mean.iter().zip(&sq))
+    {
+        let norm = sq.sqrt();
+        if norm > 0.0 && norm.is_finite() {
+            let inv = 1.0 / norm;
+            for (o, &v) in out.iter_mut().zip(*x) {
+                *o = ((f64::from(v) - mean) * inv) as f32;
+            }
+        } else {
+            out.fill(0.0);
+        }
+        *st = (mean as f32, norm as f32);
+    }
+    stats
 }
 
 /// Mean gradient magnitude (m/m) of a `side × side` row-major low-resolution patch whose cells are
@@ -75,46 +106,61 @@ pub fn centre_normalise(x: &[f32], out: &mut [f32]) -> (f32, f32) {
 /// # Panics
 /// If `lo.len() != side²`.
 pub fn patch_mean_slope(lo: &[f32], side: usize, cell_m: f32) -> f32 {
-    assert_eq!(lo.len(), side * side, "patch_mean_slope: length");
+    patch_mean_slope_n([lo], side, cell_m)[0]
+}
+
+/// [`patch_mean_slope`] of `N` patches at once, each bit for bit as alone (their sums
+/// interleave, as in [`centre_normalise_n`]).
+///
+/// # Panics
+/// If a patch's length is not `side²`.
+pub fn patch_mean_slope_n<const N: usize>(los: [&[f32]; N], side: usize, cell_m: f32) -> [f32; N] {
+    for lo in &los {
+        assert_eq!(lo.len(), side * side, "patch_mean_slope: length");
+    }
     if side < 2 || cell_m <= 0.0 || !cell_m.is_finite() {
-        return 0.0;
+        return [0.0; N];
     }
     if side > MAX_ROW_SIDE {
-        return mean_slope_plain(lo, side, cell_m);
+        return los.map(|lo| mean_slope_plain(lo, side, cell_m));
     }
     let cell = f64::from(cell_m);
     let two_cell = 2.0 * cell;
-    let at = |r: usize| &lo[r * side..(r + 1) * side];
     // Row by row: the derivatives and magnitudes of a whole row first (independent, so they
     // vectorise), then their sum in row-major order, which keeps the bits of the plain loop.
-    let mut gx = [0.0f64; MAX_ROW_SIDE];
+    let mut mags = [[0.0f64; MAX_ROW_SIDE]; N];
     let mut gy = [0.0f64; MAX_ROW_SIDE];
-    let mut total = 0.0f64;
+    let mut total = [0.0f64; N];
     for r in 0..side {
-        let here = at(r);
-        let (up, down, div) = if r == 0 {
-            (here, at(1), cell)
-        } else if r == side - 1 {
-            (at(r - 1), here, cell)
-        } else {
-            (at(r - 1), at(r + 1), two_cell)
-        };
-        for ((g, &u), &d) in gy[..side].iter_mut().zip(up).zip(down) {
-            *g = (f64::from(d) - f64::from(u)) / div;
+        for (lo, gx) in los.iter().zip(&mut mags) {
+            let at = |r: usize| &lo[r * side..(r + 1) * side];
+            let here = at(r);
+            let (up, down, div) = if r == 0 {
+                (here, at(1), cell)
+            } else if r == side - 1 {
+                (at(r - 1), here, cell)
+            } else {
+                (at(r - 1), at(r + 1), two_cell)
+            };
+            for ((g, &u), &d) in gy[..side].iter_mut().zip(up).zip(down) {
+                *g = (f64::from(d) - f64::from(u)) / div;
+            }
+            gx[0] = (f64::from(here[1]) - f64::from(here[0])) / cell;
+            for c in 1..side - 1 {
+                gx[c] = (f64::from(here[c + 1]) - f64::from(here[c - 1])) / two_cell;
+            }
+            gx[side - 1] = (f64::from(here[side - 1]) - f64::from(here[side - 2])) / cell;
+            for (x, &y) in gx[..side].iter_mut().zip(&gy[..side]) {
+                *x = (*x * *x + y * y).sqrt();
+            }
         }
-        gx[0] = (f64::from(here[1]) - f64::from(here[0])) / cell;
-        for c in 1..side - 1 {
-            gx[c] = (f64::from(here[c + 1]) - f64::from(here[c - 1])) / two_cell;
-        }
-        gx[side - 1] = (f64::from(here[side - 1]) - f64::from(here[side - 2])) / cell;
-        for (x, &y) in gx[..side].iter_mut().zip(&gy[..side]) {
-            *x = (*x * *x + y * y).sqrt();
-        }
-        for &m in &gx[..side] {
-            total += m;
+        for c in 0..side {
+            for (t, m) in total.iter_mut().zip(&mags) {
+                *t += m[c];
+            }
         }
     }
-    (total / (side * side) as f64) as f32
+    total.map(|t| (t / (side * side) as f64) as f32)
 }
 
 /// Widest patch [`patch_mean_slope`] handles a row at a time (wider ones take the plain loop).
@@ -248,6 +294,36 @@ mod tests {
                 patch_mean_slope(lo, side, cell).to_bits(),
                 patch_mean_slope_reference(lo, side, cell).to_bits()
             );
+        }
+
+        /// The batched features equal each input's own, bit for bit.
+        #[test]
+        fn batched_features_equal_each_alone(
+            side in 2usize..12,
+            cell in 0.5f32..500.0,
+            values in proptest::collection::vec(-3000.0f32..3000.0, 4 * 144),
+            flat in 0usize..5,
+        ) {
+            let n = side * side;
+            let mut patches: Vec<Vec<f32>> = values.chunks(144).map(|c| c[..n].to_vec()).collect();
+            if let Some(p) = patches.get_mut(flat) {
+                p.fill(17.0);
+            }
+            let los = [0, 1, 2, 3].map(|m| patches[m].as_slice());
+            let batch = patch_mean_slope_n(los, side, cell);
+            let mut outs = vec![vec![0.0f32; n]; 4];
+            let [o0, o1, o2, o3] = outs.as_mut_slice() else { unreachable!() };
+            let stats = centre_normalise_n(los, [o0, o1, o2, o3].map(|o| o.as_mut_slice()));
+            for m in 0..4 {
+                prop_assert_eq!(batch[m].to_bits(), patch_mean_slope(los[m], side, cell).to_bits());
+                let mut alone = vec![0.0f32; n];
+                let (a, s) = centre_normalise(los[m], &mut alone);
+                prop_assert_eq!((stats[m].0.to_bits(), stats[m].1.to_bits()), (a.to_bits(), s.to_bits()));
+                prop_assert_eq!(
+                    outs[m].iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    alone.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                );
+            }
         }
 
         // box_down2 against a naive formula written independently (2-D indexing, f64 average).

@@ -443,50 +443,91 @@ fn first_equal(chunk: &[f32], v: f32) -> Option<usize> {
 /// Atoms per block of the dot-product kernel: the block's accumulators stay in registers.
 pub const ATOM_BLOCK: usize = 64;
 
-/// `dots[i] = Σ_d q[d]·lo_t[d·n_pad + i]` for every atom, summed in increasing `d` — exactly the
-/// order of the naive per-atom loop, so the results are bit-identical to it. Blocks of
-/// [`ATOM_BLOCK`] atoms keep their accumulators in registers while `d` runs; the compiler
-/// vectorises across atoms without reassociating any sum.
+/// Queries whose dot products [`Matcher::prepare_batch`] computes in one pass over the atoms.
+pub const DOT_BATCH: usize = 4;
+
+/// `dots[m][i] = Σ_d qs[m][d]·lo_t[d·n_pad + i]` for every atom and each of the `N` queries,
+/// summed in increasing `d` — exactly the order of the naive per-atom loop, so the results are
+/// bit-identical to it. Blocks of `W` atoms (`W` divides [`ATOM_BLOCK`]) keep their `N × W`
+/// accumulators in registers while `d` runs, and each block is read once for all `N` queries
+/// (a batch streams the atoms from the cache `N` times less often); the compiler vectorises
+/// across atoms without reassociating any sum.
 #[inline(always)]
-fn dots_blocked(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
-    for (b, out) in dots.chunks_exact_mut(ATOM_BLOCK).enumerate() {
-        let mut acc = [0.0f32; ATOM_BLOCK];
-        for (d, &p) in q.iter().enumerate() {
-            let start = d * n_pad + b * ATOM_BLOCK;
-            let row = &lo_t[start..start + ATOM_BLOCK];
-            for k in 0..ATOM_BLOCK {
-                acc[k] += p * row[k];
+fn dots_blocked<const N: usize, const W: usize>(
+    qs: [&[f32]; N],
+    lo_t: &[f32],
+    n_pad: usize,
+    mut dots: [&mut [f32]; N],
+) {
+    let dim = qs.first().map_or(0, |q| q.len());
+    for start in (0..n_pad).step_by(W) {
+        let mut acc = [[0.0f32; W]; N];
+        for d in 0..dim {
+            let row = &lo_t[d * n_pad + start..d * n_pad + start + W];
+            for (acc, q) in acc.iter_mut().zip(&qs) {
+                let p = q[d];
+                for k in 0..W {
+                    acc[k] += p * row[k];
+                }
             }
         }
-        out.copy_from_slice(&acc);
+        for (out, acc) in dots.iter_mut().zip(&acc) {
+            out[start..start + W].copy_from_slice(acc);
+        }
+    }
+}
+
+/// [`dots_blocked`] with its block width: one query in blocks of [`ATOM_BLOCK`] atoms, a
+/// batch in blocks of `BATCH_W` (what the build's registers hold).
+#[inline(always)]
+fn dots_sized<const N: usize, const BATCH_W: usize>(
+    qs: [&[f32]; N],
+    lo_t: &[f32],
+    n_pad: usize,
+    dots: [&mut [f32]; N],
+) {
+    if N == 1 {
+        dots_blocked::<N, ATOM_BLOCK>(qs, lo_t, n_pad, dots);
+    } else {
+        dots_blocked::<N, BATCH_W>(qs, lo_t, n_pad, dots);
     }
 }
 
 /// The same kernel compiled for AVX2: wider vectors, the same IEEE multiplications and additions
-/// in the same order (no fused multiply-add), hence the same bits as the baseline build.
+/// in the same order (no fused multiply-add), hence the same bits as the baseline build. A batch
+/// goes in blocks of 16 atoms (16 registers).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn dots_avx2(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
-    dots_blocked(q, lo_t, n_pad, dots);
+fn dots_avx2<const N: usize>(qs: [&[f32]; N], lo_t: &[f32], n_pad: usize, dots: [&mut [f32]; N]) {
+    dots_sized::<N, 16>(qs, lo_t, n_pad, dots);
 }
 
-/// The same kernel compiled for AVX-512 (the same bits, as [`dots_avx2`]).
+/// The same kernel compiled for AVX-512 (the same bits, as [`dots_avx2`]); 32 registers hold a
+/// batch's accumulators for blocks of [`ATOM_BLOCK`] atoms.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn dots_avx512(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32]) {
-    dots_blocked(q, lo_t, n_pad, dots);
+fn dots_avx512<const N: usize>(qs: [&[f32]; N], lo_t: &[f32], n_pad: usize, dots: [&mut [f32]; N]) {
+    dots_sized::<N, ATOM_BLOCK>(qs, lo_t, n_pad, dots);
 }
 
-fn all_dots(q: &[f32], lo_t: &[f32], n_pad: usize, dots: &mut [f32], isa: Isa) {
+/// The dot products of `N` queries of `lo_t`'s dimension, each into its own `n_pad`-long slice,
+/// by the widest build `isa` allows.
+fn all_dots<const N: usize>(
+    qs: [&[f32]; N],
+    lo_t: &[f32],
+    n_pad: usize,
+    dots: [&mut [f32]; N],
+    isa: Isa,
+) {
     #[cfg(target_arch = "x86_64")]
     match isa {
         // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-        Isa::Avx512 => return unsafe { dots_avx512(q, lo_t, n_pad, dots) },
-        Isa::Avx2 => return unsafe { dots_avx2(q, lo_t, n_pad, dots) },
+        Isa::Avx512 => return unsafe { dots_avx512(qs, lo_t, n_pad, dots) },
+        Isa::Avx2 => return unsafe { dots_avx2(qs, lo_t, n_pad, dots) },
         Isa::Baseline => {}
     }
     let _ = isa;
-    dots_blocked(q, lo_t, n_pad, dots);
+    dots_sized::<N, 8>(qs, lo_t, n_pad, dots);
 }
 
 /// Scratch buffers reused across queries so that matching does not allocate.
@@ -588,14 +629,62 @@ impl Matcher {
     /// ([`Matcher::check_query`]); a wrong-length elevation is treated as zero-padded/truncated.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn best_match(&self, q: &Query, scratch: &mut MatchScratch) -> (usize, f32) {
-        let n = self.dict.n_atoms;
+        self.prepare(q, scratch);
+        self.best_match_prepared(q, scratch)
+    }
+
+    /// Computes `q`'s elevation dot products with every atom into `scratch`: the first step of
+    /// every search, which the `_prepared` searches then take from `scratch`.
+    pub fn prepare(&self, q: &Query, scratch: &mut MatchScratch) {
         let dots = &mut scratch.dots;
         dots.clear();
         dots.resize(self.n_pad, 0.0);
         if q.elevation.len() * self.n_pad == self.lo_t.len() {
-            all_dots(&q.elevation, &self.lo_t, self.n_pad, dots, self.isa);
+            all_dots([&q.elevation], &self.lo_t, self.n_pad, [dots], self.isa);
         }
-        dots.truncate(n);
+        dots.truncate(self.dict.n_atoms);
+    }
+
+    /// [`Matcher::prepare`] for [`DOT_BATCH`] queries in one pass over the atoms (the same
+    /// values, bit for bit: each query's sums run in the same order).
+    pub fn prepare_batch(
+        &self,
+        qs: [&Query; DOT_BATCH],
+        scratches: &mut [MatchScratch; DOT_BATCH],
+    ) {
+        if !qs
+            .iter()
+            .all(|q| q.elevation.len() * self.n_pad == self.lo_t.len())
+        {
+            for (q, scratch) in qs.iter().zip(scratches) {
+                self.prepare(q, scratch);
+            }
+            return;
+        }
+        let [s0, s1, s2, s3] = scratches;
+        let mut bufs = [&mut s0.dots, &mut s1.dots, &mut s2.dots, &mut s3.dots];
+        for dots in bufs.iter_mut() {
+            dots.clear();
+            dots.resize(self.n_pad, 0.0);
+        }
+        let [d0, d1, d2, d3] = &mut bufs;
+        all_dots(
+            qs.map(|q| q.elevation.as_slice()),
+            &self.lo_t,
+            self.n_pad,
+            [d0.as_mut_slice(), d1, d2, d3],
+            self.isa,
+        );
+        for dots in bufs {
+            dots.truncate(self.dict.n_atoms);
+        }
+    }
+
+    /// [`Matcher::best_match`] on the dot products [`Matcher::prepare`] left in `scratch` for
+    /// this same `q`.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    pub fn best_match_prepared(&self, q: &Query, scratch: &MatchScratch) -> (usize, f32) {
+        let dots = &scratch.dots;
         let s = self.sigmas(q);
         let w = &self.weights;
         // The first index of the largest dot product. Chunks in which no value beats the best
@@ -647,6 +736,19 @@ impl Matcher {
     /// score is NaN are never ranked. Identical to [`best_k_naive`]; pruned like
     /// [`Matcher::best_match`], against the `k`-th best score so far.
     pub fn best_k(&self, q: &Query, scratch: &mut MatchScratch, k: usize, out: &mut Vec<Ranked>) {
+        self.prepare(q, scratch);
+        self.best_k_prepared(q, scratch, k, out);
+    }
+
+    /// [`Matcher::best_k`] on the dot products [`Matcher::prepare`] left in `scratch` for this
+    /// same `q`.
+    pub fn best_k_prepared(
+        &self,
+        q: &Query,
+        scratch: &mut MatchScratch,
+        k: usize,
+        out: &mut Vec<Ranked>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         match self.isa {
             // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
@@ -687,14 +789,7 @@ impl Matcher {
         if k == 0 {
             return;
         }
-        let n = self.dict.n_atoms;
-        let dots = &mut scratch.dots;
-        dots.clear();
-        dots.resize(self.n_pad, 0.0);
-        if q.elevation.len() * self.n_pad == self.lo_t.len() {
-            all_dots(&q.elevation, &self.lo_t, self.n_pad, dots, self.isa);
-        }
-        dots.truncate(n);
+        let dots = &scratch.dots;
         let s = self.sigmas(q);
         let w = &self.weights;
         let rest = w.rest() + PRUNE_SLACK;
@@ -779,18 +874,32 @@ impl Matcher {
         i: i64,
         j: i64,
     ) -> (usize, f32) {
+        self.prepare(q, scratch);
+        self.diverse_match_prepared(q, (scratch, ranked), (k, tol), i, j)
+    }
+
+    /// [`Matcher::diverse_match`] on the dot products [`Matcher::prepare`] left in `scratch`
+    /// for this same `q`.
+    pub fn diverse_match_prepared(
+        &self,
+        q: &Query,
+        (scratch, ranked): (&mut MatchScratch, &mut Vec<Ranked>),
+        (k, tol): (usize, f32),
+        i: i64,
+        j: i64,
+    ) -> (usize, f32) {
         if tol == f32::INFINITY && self.dictionary().n_atoms >= k {
             let r = (hash2(DIVERSITY_SEED, i, j) % k as u64) as usize;
             if r == 0 {
-                return self.best_match(q, scratch);
+                return self.best_match_prepared(q, scratch);
             }
-            self.best_k(q, scratch, r + 1, ranked);
+            self.best_k_prepared(q, scratch, r + 1, ranked);
             if ranked.len() == r + 1 {
                 return (ranked[r].atom, ranked[r].dot);
             }
         }
-        self.best_k(q, scratch, k, ranked);
-        choose_diverse(ranked, tol, i, j).unwrap_or_else(|| self.best_match(q, scratch))
+        self.best_k_prepared(q, scratch, k, ranked);
+        choose_diverse(ranked, tol, i, j).unwrap_or_else(|| self.best_match_prepared(q, scratch))
     }
 
     /// The full score of atom `i` for `q` (the reference formula).
@@ -893,4 +1002,58 @@ pub fn best_match_naive(matcher: &Matcher, q: &Query) -> (usize, f32) {
         }
     }
     (best, dot(&q.elevation, dict.lo_atom(best)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The batched dot products of every build this CPU runs equal the single-query kernel's
+    /// baseline build, bit for bit, on several blocks of atoms.
+    #[test]
+    fn batched_dots_equal_single_dots_in_every_build() {
+        let (dim, n_pad) = (16, 3 * ATOM_BLOCK);
+        let mut x = 0.37f32;
+        let mut next = || {
+            x = (x * 3.7 + 0.11).fract();
+            x * 2.0 - 1.0
+        };
+        let lo_t: Vec<f32> = (0..dim * n_pad).map(|_| next() * 10.0).collect();
+        let qs: Vec<Vec<f32>> = (0..DOT_BATCH)
+            .map(|_| (0..dim).map(|_| next()).collect())
+            .collect();
+        let want: Vec<Vec<u32>> = qs
+            .iter()
+            .map(|q| {
+                let mut d = vec![0.0f32; n_pad];
+                dots_blocked::<1, ATOM_BLOCK>([q], &lo_t, n_pad, [&mut d]);
+                d.iter().map(|v| v.to_bits()).collect()
+            })
+            .collect();
+        let mut isas = vec![Isa::Baseline];
+        if Isa::detect() != Isa::Baseline {
+            isas.push(Isa::Avx2);
+        }
+        if Isa::detect() == Isa::Avx512 {
+            isas.push(Isa::Avx512);
+        }
+        for isa in isas {
+            let mut out = vec![vec![0.0f32; n_pad]; DOT_BATCH];
+            let [o0, o1, o2, o3] = out.as_mut_slice() else {
+                unreachable!()
+            };
+            let q = [0, 1, 2, 3].map(|m| qs[m].as_slice());
+            all_dots(
+                q,
+                &lo_t,
+                n_pad,
+                [o0, o1, o2, o3].map(|o| o.as_mut_slice()),
+                isa,
+            );
+            for (m, w) in want.iter().enumerate() {
+                let got: Vec<u32> = out[m].iter().map(|v| v.to_bits()).collect();
+                assert_eq!(&got, w, "{isa:?}, query {m}");
+            }
+        }
+    }
 }

@@ -274,22 +274,47 @@ pub struct OctaveScratch {
 /// finest octave, which [`Levers::roughness`](super::Levers::roughness) scales into the detail
 /// amplitude of the next level.
 pub fn finest_octave_rms(x: &[f32], side: usize, s: &mut OctaveScratch) -> f32 {
-    if side < 2 || x.len() != side * side {
-        return 0.0;
+    finest_octave_rms_n([x], side, s)[0]
+}
+
+/// [`finest_octave_rms`] of `N` patches at once, each bit for bit as alone: every patch's sum of
+/// squares runs in index order and the `N` sums interleave, so that their latencies overlap.
+pub fn finest_octave_rms_n<const N: usize>(
+    xs: [&[f32]; N],
+    side: usize,
+    s: &mut OctaveScratch,
+) -> [f32; N] {
+    let n = side * side;
+    if side < 2 {
+        return [0.0; N];
     }
     s.down.resize((side / 2) * (side / 2), 0.0);
-    s.up.resize(side * side, 0.0);
-    box_down2(x, side, &mut s.down);
-    upsample_patch_with(&CATMULL_ROM, &s.down, side / 2, &mut s.up, &mut s.rows);
-    let ss: f64 = x
-        .iter()
-        .zip(&s.up)
-        .map(|(&a, &b)| {
-            let d = f64::from(a) - f64::from(b);
-            d * d
-        })
-        .sum();
-    (ss / x.len() as f64).sqrt() as f32
+    s.up.resize(N * n, 0.0);
+    let mut ok = [false; N];
+    for ((x, up), ok) in xs.iter().zip(s.up.chunks_exact_mut(n)).zip(&mut ok) {
+        if x.len() == n {
+            box_down2(x, side, &mut s.down);
+            upsample_patch_with(&CATMULL_ROM, &s.down, side / 2, up, &mut s.rows);
+            *ok = true;
+        }
+    }
+    let ups: [&[f32]; N] = std::array::from_fn(|m| &s.up[m * n..(m + 1) * n]);
+    // A patch of the wrong length is measured against its own (stale) up-sampling: 0, unused.
+    let xs: [&[f32]; N] = std::array::from_fn(|m| if ok[m] { xs[m] } else { ups[m] });
+    let mut ss = [0.0f64; N];
+    for i in 0..n {
+        for ((acc, x), up) in ss.iter_mut().zip(&xs).zip(&ups) {
+            let d = f64::from(x[i]) - f64::from(up[i]);
+            *acc += d * d;
+        }
+    }
+    let mut rms = [0.0f32; N];
+    for ((r, &ss), &ok) in rms.iter_mut().zip(&ss).zip(&ok) {
+        if ok {
+            *r = (ss / n as f64).sqrt() as f32;
+        }
+    }
+    rms
 }
 
 #[cfg(test)]

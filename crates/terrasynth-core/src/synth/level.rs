@@ -33,14 +33,14 @@ use super::error::SynthError;
 use super::field::{Field, Window};
 pub use super::kernel::KernelKind;
 use super::kernel::{
-    consistent_upsample_patch, finest_octave_rms, floor_div, upsample_patch, OctaveScratch,
-    UpKernel, CATMULL_ROM,
+    consistent_upsample_patch, finest_octave_rms, finest_octave_rms_n, floor_div, upsample_patch,
+    OctaveScratch, UpKernel, CATMULL_ROM,
 };
 pub use super::levers::{Levers, MAX_AMPLIFY_SPARSITY};
 use crate::analysis::breach::{breach_margin, breach_pits_with, BreachRule, RISE_REACH};
-use crate::dictionary::features::{centre_normalise, patch_mean_slope};
+use crate::dictionary::features::{centre_normalise_n, patch_mean_slope_n};
 use crate::dictionary::matching::{
-    unit_centred, MatchScratch, MatchWeights, Matcher, Query, Ranked,
+    unit_centred, MatchScratch, MatchWeights, Matcher, Query, Ranked, DOT_BATCH,
 };
 use crate::dictionary::omp::{Omp, OmpScratch};
 use crate::dictionary::{Dictionary, LayerKind};
@@ -65,6 +65,19 @@ struct Primitive {
     extra: [(u32, f32, f32); MAX_AMPLIFY_SPARSITY - 1],
     /// Number of entries of `extra` in use.
     n_extra: u8,
+}
+
+impl Primitive {
+    /// A placeholder, overwritten before it is read.
+    const EMPTY: Primitive = Primitive {
+        atom: 0,
+        coef: 0.0,
+        mean: 0.0,
+        detail_coef: 0.0,
+        inv_slope: 0.0,
+        extra: [(0, 0.0, 0.0); MAX_AMPLIFY_SPARSITY - 1],
+        n_extra: 0,
+    };
 }
 
 /// What [`Amplifier::blend`] reconstructs.
@@ -505,21 +518,30 @@ impl Amplifier {
         let diversity = self.levers.diversity.max(1) as usize;
         let diversity_tol = self.levers.diversity_tol;
         let floor = self.levers.floor_m * (parent_cell_m / 2000.0).max(0.0).powf(0.7);
-        (0..nj * ni)
-            .into_par_iter()
-            .map_init(
-                || {
-                    (
-                        (MatchScratch::default(), OmpScratch::default()),
-                        vec![0.0f32; lo * lo],
-                        Query::default(),
-                        OctaveScratch::default(),
-                        Vec::<Ranked>::new(),
-                    )
-                },
-                |((scratch, omp_scratch), raw, query, octave, ranked), n| {
-                    let i = lr.i0 + (n % ni) as i64;
-                    let j = lr.j0 + (n / ni) as i64;
+        // The primitives go in groups of `DOT_BATCH`, whose queries' dot products are computed
+        // in one pass over the atoms (`Matcher::prepare_batch`); each primitive is then matched
+        // on its own, as it would be alone.
+        let mut prims = vec![Primitive::EMPTY; nj * ni];
+        prims.par_chunks_mut(DOT_BATCH).enumerate().for_each_init(
+            || {
+                (
+                    std::array::from_fn::<_, DOT_BATCH, _>(|_| MatchScratch::default()),
+                    OmpScratch::default(),
+                    std::array::from_fn::<_, DOT_BATCH, _>(|_| vec![0.0f32; lo * lo]),
+                    std::array::from_fn::<_, DOT_BATCH, _>(|_| Query::default()),
+                    OctaveScratch::default(),
+                    Vec::<Ranked>::new(),
+                )
+            },
+            |(scratches, omp_scratch, raws, queries, octave, ranked), (g, group)| {
+                let point = |m: usize| {
+                    let n = g * DOT_BATCH + m;
+                    (lr.i0 + (n % ni) as i64, lr.j0 + (n / ni) as i64)
+                };
+                // A short last group repeats its last point: a full batch, whose extra results
+                // are dropped.
+                for (m, (raw, query)) in raws.iter_mut().zip(queries.iter_mut()).enumerate() {
+                    let (i, j) = point(m.min(group.len() - 1));
                     let pc0 = (i * s / 2 - q - pw.col0) as usize;
                     let pr0 = (j * s / 2 - q - pw.row0) as usize;
                     let read = |a: &Array2<f32>, out: &mut [f32]| {
@@ -532,9 +554,6 @@ impl Amplifier {
                     };
                     read(&parent.elevation, raw);
                     query.elevation.resize(lo * lo, 0.0);
-                    let (mean, norm) = centre_normalise(raw, &mut query.elevation);
-                    query.mean_alt = mean;
-                    query.mean_slope = patch_mean_slope(raw, lo, parent_cell_m);
                     query.layers.clear();
                     for pl in &parent_layers {
                         match pl {
@@ -548,8 +567,29 @@ impl Amplifier {
                             None => query.layers.push(Vec::new()),
                         }
                     }
+                }
+                let patches = raws.each_ref().map(Vec::as_slice);
+                let stats = centre_normalise_n(
+                    patches,
+                    queries.each_mut().map(|q| q.elevation.as_mut_slice()),
+                );
+                let slopes = patch_mean_slope_n(patches, lo, parent_cell_m);
+                let finest = if roughness > 0.0 {
+                    finest_octave_rms_n(patches, lo, octave)
+                } else {
+                    [0.0; DOT_BATCH]
+                };
+                for ((query, &(mean, _)), &slope) in queries.iter_mut().zip(&stats).zip(&slopes) {
+                    query.mean_alt = mean;
+                    query.mean_slope = slope;
+                }
+                self.matcher.prepare_batch(queries.each_ref(), scratches);
+                for (m, prim) in group.iter_mut().enumerate() {
+                    let (i, j) = point(m);
+                    let (query, scratch) = (&queries[m], &mut scratches[m]);
+                    let (mean, norm) = stats[m];
                     let (atom, dot) = if diversity > 1 {
-                        self.matcher.diverse_match(
+                        self.matcher.diverse_match_prepared(
                             query,
                             (scratch, ranked),
                             (diversity, diversity_tol),
@@ -557,10 +597,10 @@ impl Amplifier {
                             j,
                         )
                     } else {
-                        self.matcher.best_match(query, scratch)
+                        self.matcher.best_match_prepared(query, scratch)
                     };
                     let detail_coef = if roughness > 0.0 {
-                        let finest = finest_octave_rms(raw, lo, octave);
+                        let finest = finest[m];
                         let rough = if octave_match > 0.0 {
                             octave_match * self.detail_per_octave[atom]
                         } else {
@@ -577,7 +617,7 @@ impl Amplifier {
                     } else {
                         norm
                     };
-                    let mut prim = Primitive {
+                    *prim = Primitive {
                         atom,
                         coef: dot * norm,
                         mean,
@@ -604,10 +644,10 @@ impl Amplifier {
                             prim.n_extra += 1;
                         }
                     }
-                    prim
-                },
-            )
-            .collect()
+                }
+            },
+        );
+        prims
     }
 
     /// Blends the primitives over window `bw`, adding contributions in lattice order. For

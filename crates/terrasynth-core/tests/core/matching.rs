@@ -6,6 +6,7 @@ use std::sync::Arc;
 use proptest::prelude::*;
 use terrasynth_core::dictionary::matching::{
     best_k_naive, best_match_naive, choose_diverse, unit_centred, MatchScratch, Query, Ranked,
+    DOT_BATCH,
 };
 use terrasynth_core::dictionary::{
     AtomSource, Dictionary, DictionaryParams, LayerInfo, LayerKind, Learning, MatchWeights, Matcher,
@@ -226,6 +227,49 @@ proptest! {
             let fast = matcher.diverse_match(&q, (&mut scratch, &mut ranked), (k, tol), i, j);
             let want = choose_diverse(&naive, tol, i, j).unwrap();
             prop_assert_eq!((fast.0, fast.1.to_bits()), (want.0, want.1.to_bits()));
+        }
+    }
+}
+
+proptest! {
+    /// Queries prepared in a batch (`Matcher::prepare_batch`: one pass over the atoms for four)
+    /// are matched exactly as alone: the diverse pick equals the choice over the naive ranking.
+    #[test]
+    fn batch_prepared_queries_match_as_the_naive_ranking(
+        n in 1usize..80,
+        k in 2usize..10,
+        values in prop::collection::vec(-5.0f32..5.0, 4..40),
+        qvs in prop::collection::vec(prop::collection::vec(-5.0f32..5.0, 16), 4),
+        alt in -100.0f32..3000.0,
+        slope in 0.0f32..1.0,
+        with_layers: bool,
+        copy_atom in prop::option::of(0usize..80),
+        i0 in -1000i64..1000,
+    ) {
+        let dict = random_dictionary(n, &values, 0);
+        let weights = MatchWeights {
+            elevation: 1.0,
+            altitude: 0.2,
+            slope: 0.1,
+            layers: vec![("log_area".into(), 0.2)],
+        };
+        let matcher = Matcher::new(Arc::new(dict.clone()), &weights).unwrap();
+        let mut qs: Vec<Query> = qvs.iter().map(|qv| query_from(qv, alt, slope, with_layers)).collect();
+        if let Some(i) = copy_atom {
+            qs[1].elevation = dict.lo_atom(i % n).to_vec();
+        }
+        let mut scratches: [MatchScratch; DOT_BATCH] = Default::default();
+        matcher.prepare_batch([&qs[0], &qs[1], &qs[2], &qs[3]], &mut scratches);
+        let mut ranked: Vec<Ranked> = Vec::new();
+        for (m, (q, scratch)) in qs.iter().zip(scratches.iter_mut()).enumerate() {
+            let naive = best_k_naive(&matcher, q, k);
+            let (i, j) = (i0 + m as i64, 7 - m as i64);
+            let fast = matcher.diverse_match_prepared(q, (scratch, &mut ranked), (k, f32::INFINITY), i, j);
+            let want = choose_diverse(&naive, f32::INFINITY, i, j).unwrap();
+            prop_assert_eq!((fast.0, fast.1.to_bits()), (want.0, want.1.to_bits()));
+            let best = matcher.best_match_prepared(q, scratch);
+            let naive_best = best_match_naive(&matcher, q);
+            prop_assert_eq!((best.0, best.1.to_bits()), (naive_best.0, naive_best.1.to_bits()));
         }
     }
 }
