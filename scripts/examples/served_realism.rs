@@ -109,11 +109,11 @@ fn main() -> Result<(), Box<dyn Error>> {
             let flood = flood_extent(&elev);
             let (reached, continued) = continuity(&area);
             println!(
-                "| {z} | 8×8 ({x0}, {y0}) | {flood:.2} | {reached} | {:.1} % | {aniso:.2} |",
+                "| {z} | 8×8 ({x0}, {y0}) | {flood:.2} | {reached} | {:.1} % | {aniso:.3} |",
                 100.0 * continued as f64 / reached.max(1) as f64
             );
         } else {
-            println!("| {z} | 2×2 ({ax}, {ay}) | — | — | — | {aniso:.2} |");
+            println!("| {z} | 2×2 ({ax}, {ay}) | — | — | — | {aniso:.3} |");
         }
     }
     Ok(())
