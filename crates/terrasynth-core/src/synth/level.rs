@@ -175,6 +175,46 @@ pub struct Amplifier {
     omp: Option<Arc<Omp>>,
 }
 
+/// [`Levers::detail_smooth`]: each value of the `side × side` patch `x` moves a fraction `k` of
+/// the way to its 3×3 binomial average (edges clamped), and the patch is rescaled to its RMS
+/// before, so the detail keeps its energy but holds less of it at the pixel scale.
+fn smooth_detail(x: &mut [f32], side: usize, k: f32) {
+    let rms = |v: &[f32]| {
+        v.iter()
+            .map(|&a| f64::from(a) * f64::from(a))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let before = rms(x);
+    let at = |r: isize, c: isize| {
+        let r = r.clamp(0, side as isize - 1) as usize;
+        let c = c.clamp(0, side as isize - 1) as usize;
+        x[r * side + c]
+    };
+    let mut out = vec![0.0f32; x.len()];
+    for r in 0..side as isize {
+        for c in 0..side as isize {
+            let mut sum = 0.0f32;
+            for (dr, wr) in [(-1isize, 1.0f32), (0, 2.0), (1, 1.0)] {
+                for (dc, wc) in [(-1isize, 1.0f32), (0, 2.0), (1, 1.0)] {
+                    sum += wr * wc * at(r + dr, c + dc);
+                }
+            }
+            let v = at(r, c);
+            out[r as usize * side + c as usize] = v + k * (sum / 16.0 - v);
+        }
+    }
+    let after = rms(&out);
+    let scale = if after > 0.0 {
+        (before / after) as f32
+    } else {
+        1.0
+    };
+    for (d, o) in x.iter_mut().zip(&out) {
+        *d = o * scale;
+    }
+}
+
 /// Caps the stripes of a `side × side` detail patch: the energy of its row means about the
 /// patch mean (and separately of its column means) is scaled down to at most `cap / side` of the
 /// patch's energy about its mean before the cap (isotropic detail holds about `1/side` there);
@@ -325,6 +365,13 @@ impl Amplifier {
                     &mut detail[i * p2..(i + 1) * p2],
                     patch,
                     self.levers.stripe_cap,
+                );
+            }
+            if self.levers.detail_smooth > 0.0 {
+                smooth_detail(
+                    &mut detail[i * p2..(i + 1) * p2],
+                    patch,
+                    self.levers.detail_smooth,
                 );
             }
         }
@@ -1252,6 +1299,48 @@ mod tests {
         assert_eq!(gentle_blend(0.58, (0.0, 0.04), 0.01), 0.58);
         assert_eq!(gentle_blend(0.58, (0.8, 0.0), 0.01), 0.58);
         assert_eq!(gentle_blend(0.58, g, f32::NAN), 0.58);
+    }
+
+    #[test]
+    fn the_detail_smoothing_keeps_the_rms_and_moves_energy_off_the_pixel_scale() {
+        let side = 8;
+        // A checkerboard (all its energy at the pixel scale) over a slow ramp.
+        let patch: Vec<f32> = (0..side * side)
+            .map(|k| {
+                let (r, c) = (k / side, k % side);
+                let board = if (r + c) % 2 == 0 { 1.0f32 } else { -1.0 };
+                board + 0.5 * (r as f32 - 3.5)
+            })
+            .collect();
+        let rms = |v: &[f32]| (v.iter().map(|a| a * a).sum::<f32>() / v.len() as f32).sqrt();
+        // Energy of the differences between horizontal neighbours: the checkerboard's 4 per
+        // pair before, far less once it is smoothed.
+        let rough = |v: &[f32]| -> f32 {
+            (0..side * side)
+                .filter(|k| k % side + 1 < side)
+                .map(|k| (v[k + 1] - v[k]).powi(2))
+                .sum()
+        };
+        for k in [0.25f32, 0.5, 1.0] {
+            let mut x = patch.clone();
+            smooth_detail(&mut x, side, k);
+            assert!((rms(&x) - rms(&patch)).abs() < 1e-4, "{k}: rms");
+            assert!(
+                rough(&x) < 0.8 * rough(&patch),
+                "{k}: {} vs {}",
+                rough(&x),
+                rough(&patch)
+            );
+        }
+        // Smoother with more smoothing.
+        let (mut half, mut whole) = (patch.clone(), patch.clone());
+        smooth_detail(&mut half, side, 0.5);
+        smooth_detail(&mut whole, side, 1.0);
+        assert!(rough(&whole) < rough(&half));
+        // A flat patch stays flat (no division by zero).
+        let mut zero = vec![0.0f32; side * side];
+        smooth_detail(&mut zero, side, 1.0);
+        assert!(zero.iter().all(|&v| v == 0.0));
     }
 
     #[test]

@@ -72,6 +72,10 @@ pub struct Levers {
     /// holds there (`1/patch` of the detail's energy before the cap). 0 removes them; infinity
     /// leaves the atoms as they are.
     pub stripe_cap: f32,
+    /// Low-pass of each atom's detail toward its 3×3 binomial smoothing (0: none, 1: the whole
+    /// smoothing), rescaled to its RMS before: moves the detail's energy from the pixel scale to
+    /// the octave below it.
+    pub detail_smooth: f32,
     /// Atoms per primitive (the sparse construction tree of Guérin et al.): the matcher's atom
     /// plus up to `sparsity − 1` more, chosen by Orthogonal Matching Pursuit on what the first
     /// leaves of the parent patch, with least-squares coefficients for all of them. 0: the
@@ -114,6 +118,7 @@ impl Default for Levers {
             steep_slope: 0.05,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
+            detail_smooth: 0.0,
             sparsity: 0,
             diversity: 8,
             diversity_tol: f32::INFINITY,
@@ -142,6 +147,7 @@ impl Levers {
             steep_slope: 0.0,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
+            detail_smooth: 0.0,
             sparsity: 0,
             diversity: 1,
             diversity_tol: f32::INFINITY,
@@ -153,9 +159,9 @@ impl Levers {
     /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
     /// pits), `floor=M`, `gentle=R` (roughness where the finest octave is gentle),
-    /// `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `sparsity=S` (0:
-    /// the dictionary's), `diverse=K` (atoms a primitive chooses among), `within=T` (their score
-    /// tolerance).
+    /// `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `dsmooth=K` (detail
+    /// low-pass), `sparsity=S` (0: the dictionary's), `diverse=K` (atoms a primitive chooses
+    /// among), `within=T` (their score tolerance).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -190,6 +196,7 @@ impl Levers {
                         _ => num(0.0, 1e6)? as f32,
                     }
                 }
+                "dsmooth" => l.detail_smooth = num(0.0, 1.0)? as f32,
                 "floor" => l.floor_m = num(0.0, 100.0)? as f32,
                 "gentle" => l.gentle_roughness = num(0.0, 4.0)? as f32,
                 "gentleslope" => l.gentle_slope = num(0.0, 10.0)? as f32,
@@ -243,6 +250,9 @@ mod tests {
             .stripe_cap
             .is_infinite());
         assert!(Levers::parse("stripes=-1").is_err());
+        assert_eq!(Levers::parse("dsmooth=0.3").unwrap().detail_smooth, 0.3);
+        assert_eq!(Levers::default().detail_smooth, 0.0);
+        assert!(Levers::parse("dsmooth=1.5").is_err());
         assert!(Levers::parse("rough").is_err());
         assert!(Levers::parse("breach=1000").is_err());
         assert!(Levers::parse("kernel=lanczos").is_err());
