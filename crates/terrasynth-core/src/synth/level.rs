@@ -179,13 +179,13 @@ pub struct Amplifier {
 /// the way to its 3×3 binomial average (edges clamped), and the patch is rescaled to its RMS
 /// before, so the detail keeps its energy but holds less of it at the pixel scale.
 fn smooth_detail(x: &mut [f32], side: usize, k: f32) {
-    let rms = |v: &[f32]| {
+    let norm = |v: &[f32]| {
         v.iter()
             .map(|&a| f64::from(a) * f64::from(a))
             .sum::<f64>()
             .sqrt()
     };
-    let before = rms(x);
+    let before = norm(x);
     let at = |r: isize, c: isize| {
         let r = r.clamp(0, side as isize - 1) as usize;
         let c = c.clamp(0, side as isize - 1) as usize;
@@ -204,7 +204,7 @@ fn smooth_detail(x: &mut [f32], side: usize, k: f32) {
             out[r as usize * side + c as usize] = v + k * (sum / 16.0 - v);
         }
     }
-    let after = rms(&out);
+    let after = norm(&out);
     let scale = if after > 0.0 {
         (before / after) as f32
     } else {
