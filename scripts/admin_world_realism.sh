@@ -7,9 +7,11 @@
 # admin token, uploads both (POST /admin/exemplars), builds a dictionary from the exemplar (POST
 # /admin/dictionaries {"name": "alai", "exemplars": [E], "seed": 1}, defaults otherwise),
 # creates the world `alatoo` (POST /admin/worlds, max_zoom 14), stops the server and runs the `served_realism`
-# example on that store around the corner of zoom-10 tile 722/382 (the middle of the base).
+# example on that store around the corner of zoom-10 tile 722/382 (the middle of the base); it
+# prints the exemplar's own anisotropy first, since the served mosaics inherit it.
 #
 # Usage: scripts/admin_world_realism.sh [PORT]   (default 18491; work under target/admin-realism)
+# EXEMPLAR_WINDOW=COL,ROW,WIDTH,HEIGHT takes the exemplar from another window of the same grid.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 cd "$(dirname "$0")/.."
@@ -19,7 +21,7 @@ rm -rf "$WORK" && mkdir -p "$WORK"
 T=config/data/tienshan_west_gebco15s.tif
 cargo build --release --quiet --bin terrasynth --example served_realism
 B=target/release/terrasynth
-"$B" crop --input "$T" --window 1400,1400,512,512 --output "$WORK/exemplar.tif" >/dev/null
+"$B" crop --input "$T" --window "${EXEMPLAR_WINDOW:-1400,1400,512,512}" --output "$WORK/exemplar.tif" >/dev/null
 "$B" crop --input "$T" --window 1500,500,768,640 --output "$WORK/base.tif" >/dev/null
 
 export TERRASYNTH_ADMIN_TOKEN=realism
@@ -52,4 +54,4 @@ curl -sf -H "$A" -H 'Content-Type: application/json' "$S/admin/worlds" \
     >/dev/null
 kill $pid
 wait $pid 2>/dev/null || true
-target/release/examples/served_realism "$WORK/store" alatoo 722 382
+target/release/examples/served_realism "$WORK/store" alatoo 722 382 "$WORK/exemplar.tif"

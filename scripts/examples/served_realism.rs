@@ -12,20 +12,24 @@
 //! - pixel-axis anisotropy ([`axis_anisotropy`]) of 2×2 mosaics (512²) at zooms 8 (native, for
 //!   reference), 10, 12, 13 and 14 (acceptance 3: ≤ 1.5).
 //!
-//! Usage: `cargo run --release --example served_realism -- [STORE_DIR [WORLD X10 Y10]]` (default
-//! `target/picture-store`, which builds the default dictionary there on first use; `WORLD`: any
-//! world of the configuration or created through the admin API in that store, its mosaics centred
-//! on the corner of zoom-10 tile `X10/Y10` instead of the default world's). Prints a markdown
-//! table.
+//! Usage: `cargo run --release --example served_realism -- [STORE_DIR [WORLD X10 Y10
+//! [EXEMPLAR.tif]]]` (default `target/picture-store`, which builds the default dictionary there on
+//! first use; `WORLD`: any world of the configuration or created through the admin API in that
+//! store, its mosaics centred on the corner of zoom-10 tile `X10/Y10` instead of the default
+//! world's; `EXEMPLAR.tif`: the raster the world's dictionary was cut from, whose own anisotropy,
+//! on its pixel grid as the atoms see it, is printed first: the amplifier carries the exemplar's
+//! axis statistics into every level). Prints a markdown table.
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::error::Error;
+use std::path::Path;
 
 use ndarray::Array2;
 use terrasynth_core::analysis::flood_extent;
 use terrasynth_core::analysis::realism::axis_anisotropy;
+use terrasynth_core::raster::{read_raster_file, ReadLimits};
 use terrasynth_test_support::coherence::{decoded_elevation, served_drainage};
 
 /// Upstream area from which the drainage PNG draws a channel (its default `png_min_m2`).
@@ -85,11 +89,22 @@ fn main() -> Result<(), Box<dyn Error>> {
     config.server.store_dir = store.into();
     // The configured worlds and those created through the admin API, as the server loads them.
     let state = terrasynth::server::startup::build_state(&config)?;
-    let (name, centre) = match args.get(1..).unwrap_or_default() {
-        [] => ("tienshan", CENTRE_Z10),
-        [name, x, y] => (name.as_str(), (x.parse()?, y.parse()?)),
-        _ => return Err("usage: served_realism [STORE_DIR [WORLD X10 Y10]]".into()),
+    let (name, centre, exemplar) = match args.get(1..).unwrap_or_default() {
+        [] => ("tienshan", CENTRE_Z10, None),
+        [name, x, y] => (name.as_str(), (x.parse()?, y.parse()?), None),
+        [name, x, y, exemplar] => (name.as_str(), (x.parse()?, y.parse()?), Some(exemplar)),
+        _ => return Err("usage: served_realism [STORE_DIR [WORLD X10 Y10 [EXEMPLAR.tif]]]".into()),
     };
+    if let Some(path) = exemplar {
+        let grid = read_raster_file(Path::new(path), None, &ReadLimits::default())?
+            .elevation()
+            .ok_or("the exemplar has no elevation band")?;
+        let (rows, cols) = grid.data.dim();
+        println!(
+            "exemplar {path} ({cols}×{rows}): anisotropy {:.3} on its own pixel grid\n",
+            axis_anisotropy(&grid.filled()?)
+        );
+    }
     let world = state
         .world(name)
         .map_err(|_| format!("no world {name} in the configuration or the store"))?;
