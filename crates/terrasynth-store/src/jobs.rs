@@ -16,8 +16,8 @@ use utoipa::ToSchema;
 
 use terrasynth_core::dictionary::build::{build_cancellable, BuildOptions, Exemplar};
 use terrasynth_core::dictionary::{
-    build_gradient_tiles, exemplar_plane, AmplifierKind, DictionaryError, ExemplarOptions,
-    GradientParams, LayerKind, Learning,
+    build_gradient_tiles, exemplar_plane, AmplifierKind, AnyDictionary, DictionaryError,
+    ExemplarOptions, GradientParams, LayerKind, Learning,
 };
 use terrasynth_core::landscape::{exemplar_vegetation, LandscapeConfig, Species};
 use terrasynth_core::raster::Grid;
@@ -478,16 +478,26 @@ impl Jobs {
             terrasynth_core::dictionary::matching::ResolvedWeights::resolve(&weights, &d)
                 .map_err(|e| params(e.to_string()))?;
         }
+        self.store_dictionary(id, &request.name, Arc::new(d).into(), cancel)
+    }
+
+    /// The last stage of every dictionary job `id`: unless cancelled, stores `dictionary` under
+    /// `name` in the catalogue; its id.
+    fn store_dictionary(
+        &self,
+        id: &str,
+        name: &str,
+        dictionary: AnyDictionary,
+        cancel: &AtomicBool,
+    ) -> Result<String, BuildFailure> {
         self.set_progress(id, "storing", 0.97);
         if cancel.load(Ordering::Relaxed) {
             return Err(BuildFailure::Cancelled);
         }
-        let dict_id = self
-            .inner
+        self.inner
             .catalog
-            .add_dictionary(&self.inner.store, &request.name, Arc::new(d).into())
-            .map_err(BuildFailure::Store)?;
-        Ok(dict_id)
+            .add_dictionary(&self.inner.store, name, dictionary)
+            .map_err(BuildFailure::Store)
     }
 
     /// Builds and stores the gradient tile set of `request` (`kind: gradient`); its id.
@@ -518,16 +528,7 @@ impl Jobs {
         }
         self.set_progress(id, "tiles", 0.3);
         let set = build_gradient_tiles(&planes, &params)?;
-        self.set_progress(id, "storing", 0.97);
-        if cancel.load(Ordering::Relaxed) {
-            return Err(BuildFailure::Cancelled);
-        }
-        let dict_id = self
-            .inner
-            .catalog
-            .add_dictionary(&self.inner.store, &request.name, Arc::new(set).into())
-            .map_err(BuildFailure::Store)?;
-        Ok(dict_id)
+        self.store_dictionary(id, &request.name, Arc::new(set).into(), cancel)
     }
 
     /// Synthesizes the terrain of sketch job `id` from its stored exemplars and hands it to the

@@ -121,6 +121,19 @@ impl<W: Write> HashWriter<W> {
         self.hasher.update(bytes);
         self.inner.write_all(bytes)
     }
+
+    /// Ends the file: appends the SHA-256 of everything put so far and flushes.
+    pub(super) fn finish(mut self) -> io::Result<()> {
+        let digest = self.hasher.finalize();
+        self.inner.write_all(digest.as_slice())?;
+        self.inner.flush()
+    }
+
+    /// The content identifier of what was put: the hex of the digest [`finish`](Self::finish)
+    /// would append.
+    pub(super) fn content_id(self) -> String {
+        hex(self.hasher.finalize().as_slice())
+    }
 }
 
 /// A sink that discards bytes (used to hash without buffering).
@@ -195,10 +208,7 @@ fn write_body<W: Write>(d: &Dictionary, w: W) -> Result<HashWriter<W>, Dictionar
 
 /// Writes `d` in the binary format (the dictionary must pass `check_consistency`).
 pub fn write_dictionary<W: Write>(d: &Dictionary, w: W) -> Result<(), DictionaryError> {
-    let mut hw = write_body(d, w)?;
-    let digest = hw.hasher.finalize();
-    hw.inner.write_all(digest.as_slice())?;
-    hw.inner.flush()?;
+    write_body(d, w)?.finish()?;
     Ok(())
 }
 
@@ -213,8 +223,7 @@ pub fn to_bytes(d: &Dictionary) -> Result<Vec<u8>, DictionaryError> {
 /// checksum — i.e. the hex of the 32-byte checksum that ends its file, so the identifier of a stored
 /// file can be read from its last 32 bytes. Computed without materialising the bytes.
 pub fn content_id(d: &Dictionary) -> Result<String, DictionaryError> {
-    let hw = write_body(d, Sink)?;
-    Ok(hex(hw.hasher.finalize().as_slice()))
+    Ok(write_body(d, Sink)?.content_id())
 }
 
 /// Lowercase hexadecimal of `bytes`.

@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use super::error::DictionaryError;
-use super::format::{hex, put_f32s, HashReader, HashWriter, Sink};
+use super::format::{put_f32s, HashReader, HashWriter, Sink};
 use super::gradient_tiles::{GradientParams, GradientTileSet};
 
 /// The 8 magic bytes every gradient tile set file starts with.
@@ -85,10 +85,7 @@ fn write_body<W: Write>(set: &GradientTileSet, w: W) -> Result<HashWriter<W>, Di
 
 /// Writes `set` in the binary format.
 pub fn write_gradient_tiles<W: Write>(set: &GradientTileSet, w: W) -> Result<(), DictionaryError> {
-    let mut hw = write_body(set, w)?;
-    let digest = hw.hasher.finalize();
-    hw.inner.write_all(digest.as_slice())?;
-    hw.inner.flush()?;
+    write_body(set, w)?.finish()?;
     Ok(())
 }
 
@@ -101,8 +98,7 @@ pub fn to_bytes(set: &GradientTileSet) -> Result<Vec<u8>, DictionaryError> {
 
 /// Content identifier of `set`: the hex SHA-256 ending its file.
 pub fn content_id(set: &GradientTileSet) -> Result<String, DictionaryError> {
-    let hw = write_body(set, Sink)?;
-    Ok(hex(hw.hasher.finalize().as_slice()))
+    Ok(write_body(set, Sink)?.content_id())
 }
 
 /// Reads a gradient tile set, refusing files larger than `max_bytes` (checked against the

@@ -418,43 +418,43 @@ impl LandscapeConfig {
     /// Checks that every `class.<name>` term of the materials and species names one of the world's classes
     /// `names`; the error names the material and the class.
     pub fn check_classes(&self, names: &[String]) -> Result<(), LandscapeError> {
-        let terms = self
-            .materials
-            .iter()
-            .map(|m| ("material", &m.name, &m.class))
-            .chain(self.species.iter().map(|s| ("species", &s.name, &s.class)));
-        for (what, name, class) in terms {
-            if let Some(c) = class.keys().find(|c| !names.contains(c)) {
-                let known = if names.is_empty() {
-                    "the world has no classes".to_string()
-                } else {
-                    format!("its classes are {}", names.join(", "))
-                };
-                return Err(LandscapeError::Invalid(format!(
-                    "{what} {name} names unknown class `{c}` ({known})"
-                )));
-            }
-        }
-        Ok(())
+        self.check_term_names(("class", "classes"), names, |m| &m.class, |s| &s.class)
     }
 
     /// Checks that every `biome.<name>` term of the materials and species names one of the
     /// world's biomes `names`; the error names the material (or species) and the biome.
     pub fn check_biomes(&self, names: &[String]) -> Result<(), LandscapeError> {
+        self.check_term_names(("biome", "biomes"), names, |m| &m.biome, |s| &s.biome)
+    }
+
+    /// The check behind [`check_classes`](Self::check_classes) and
+    /// [`check_biomes`](Self::check_biomes): every key of the terms `of_material` and
+    /// `of_species` pick must be one of `names`; `(noun, plural)` words the error.
+    fn check_term_names(
+        &self,
+        (noun, plural): (&str, &str),
+        names: &[String],
+        of_material: impl Fn(&Material) -> &BTreeMap<String, Trapezoid>,
+        of_species: impl Fn(&Species) -> &BTreeMap<String, Trapezoid>,
+    ) -> Result<(), LandscapeError> {
         let terms = self
             .materials
             .iter()
-            .map(|m| ("material", &m.name, &m.biome))
-            .chain(self.species.iter().map(|s| ("species", &s.name, &s.biome)));
-        for (what, name, biome) in terms {
-            if let Some(b) = biome.keys().find(|b| !names.contains(b)) {
+            .map(|m| ("material", &m.name, of_material(m)))
+            .chain(
+                self.species
+                    .iter()
+                    .map(|s| ("species", &s.name, of_species(s))),
+            );
+        for (what, name, terms) in terms {
+            if let Some(key) = terms.keys().find(|k| !names.contains(k)) {
                 let known = if names.is_empty() {
-                    "the world has no biomes".to_string()
+                    format!("the world has no {plural}")
                 } else {
-                    format!("its biomes are {}", names.join(", "))
+                    format!("its {plural} are {}", names.join(", "))
                 };
                 return Err(LandscapeError::Invalid(format!(
-                    "{what} {name} names unknown biome `{b}` ({known})"
+                    "{what} {name} names unknown {noun} `{key}` ({known})"
                 )));
             }
         }
