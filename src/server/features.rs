@@ -50,7 +50,8 @@ impl Kinds {
 #[utoipa::path(get, path = "/worlds/{world}/features.geojson", tag = "meta",
     params(
         ("world" = String, Path, description = "World name"),
-        ("kind" = Option<String>, Query, description = "`ridge`, `valley` or `all` (default)")
+        ("kind" = Option<String>, Query, description = "`ridge`, `valley` or `all` (default)",
+            pattern = "^(ridge|valley|all)$")
     ),
     responses(
         (status = 200, description = "GeoJSON FeatureCollection of LineStrings (lon/lat) with properties `kind`, `mean_elevation_m`, `cells`, `start`, `end`", body = Object, content_type = "application/geo+json"),

@@ -95,9 +95,12 @@ fn number(query: &HashMap<String, String>, key: &str) -> Result<Option<f64>, Ser
 #[utoipa::path(get, path = "/worlds/{world}/elevation", tag = "meta",
     params(
         ("world" = String, Path, description = "World name", example = "tienshan"),
-        ("lon" = f64, Query, description = "Longitude, degrees (−180..180)", example = 72.5),
-        ("lat" = f64, Query, description = "Latitude, degrees (±85.0511)", example = 42.4),
-        ("z" = Option<u8>, Query, description = "Zoom to read (default the world's opening zoom; capped at its deepest)")
+        ("lon" = f64, Query, description = "Longitude, degrees (−180..180)", example = 72.5,
+            minimum = -180.0, maximum = 180.0),
+        ("lat" = f64, Query, description = "Latitude, degrees (±85.0511)", example = 42.4,
+            minimum = -85.051_128_779_806_59, maximum = 85.051_128_779_806_59),
+        ("z" = Option<u8>, Query, description = "Zoom to read (default the world's opening zoom; capped at its deepest)",
+            maximum = 255)
     ),
     responses(
         (status = 200, description = "Metres at the point, and the zoom used", body = PointElevation),
