@@ -186,4 +186,17 @@ for format in pmtiles mbtiles; do
     fi
 done
 echo "export_test: killed exports left no archive under the output name"
-ls -a "$OUT" | grep -c '\.tmp-' | xargs -I{} echo "export_test: {} temporary file(s) left by the killed exports (hidden names)"
+left=$(ls -a "$OUT" | grep -c '^\.killed\.mbtiles\.tmp-' || true)
+echo "export_test: $left temporary file(s) left by the killed MBTiles export (a hidden name)"
+# The next export to the same name removes what the killed one left, and writes its archive.
+"$BIN" export --world tienshan --bbox 71.5,42.1,73.5,42.7 --zooms 0-2 --layers elevation \
+    --format mbtiles --output "$OUT/killed.mbtiles" >/dev/null 2>"$OUT/rerun.err"
+if ls -a "$OUT" | grep -q '^\.killed\.mbtiles\.tmp-' || [[ ! -s "$OUT/killed.mbtiles" ]]; then
+    echo "export_test: the export after a killed one left a temporary file or no archive" >&2
+    exit 1
+fi
+if [[ $left -gt 0 ]] && ! grep -q "removed $left temporary file" "$OUT/rerun.err"; then
+    echo "export_test: the export after a killed one did not say it removed $left file(s)" >&2
+    exit 1
+fi
+echo "export_test: the next export to that name removed them and wrote its archive"

@@ -82,6 +82,41 @@ pub fn temporary_path(output: &Path) -> PathBuf {
     output.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
+/// Removes the temporary files (`.NAME.tmp-PID`, [`temporary_path`]) that exports to `output`
+/// killed before they finished left beside it: those whose process no longer runs. A file of a
+/// process that still runs (another export to the same name) is kept, and so is every file where
+/// liveness cannot be told (no `/proc`). Returns how many files were removed.
+pub fn remove_stale_temporaries(output: &Path) -> usize {
+    let Some(name) = output.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return 0;
+    };
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let proc = Path::new("/proc");
+    let (Ok(entries), true) = (std::fs::read_dir(dir), proc.join("self").exists()) else {
+        return 0;
+    };
+    let prefix = format!(".{name}.tmp-");
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(pid) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix(&prefix))
+            .and_then(|pid| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let dead = pid != std::process::id() && !proc.join(pid.to_string()).exists();
+        if dead && std::fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
 /// Joins the parts of a sharded export (all PMTiles or all MBTiles, told by their first bytes)
 /// into `output`. Returns the archive's summary.
 pub fn merge(parts: &[PathBuf], output: &Path) -> Result<Merged, ArchiveError> {
@@ -179,4 +214,34 @@ fn merge_pmtiles(parts: &[PathBuf], output: &Path) -> Result<(u64, u64, u64), Ar
         pmtiles::ROOT_LIMIT - pmtiles::HEADER_LEN,
     )?;
     Ok((tiles, unique, bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_temporaries_of_dead_exports_to_the_same_output_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("a.pmtiles");
+        // Linux PIDs stay below 2^22, so this process never runs; PID 1 always does.
+        let dead = dir.path().join(".a.pmtiles.tmp-4000000000");
+        let kept = [
+            dir.path()
+                .join(format!(".a.pmtiles.tmp-{}", std::process::id())),
+            dir.path().join(".a.pmtiles.tmp-1"),
+            dir.path().join(".b.pmtiles.tmp-4000000000"),
+            dir.path().join(".a.pmtiles.tmp-x"),
+            dir.path().join("a.pmtiles"),
+        ];
+        for p in kept.iter().chain([&dead]) {
+            std::fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temporaries(&output), 1);
+        assert!(!dead.exists());
+        for p in &kept {
+            assert!(p.exists(), "{} was removed", p.display());
+        }
+        assert_eq!(remove_stale_temporaries(&output), 0);
+    }
 }

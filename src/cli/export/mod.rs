@@ -9,7 +9,8 @@
 //! chunks and written in PMTiles tile-id (Hilbert) order; shard `I` of `N` takes the `I`-th of
 //! `N` equal consecutive slices of that order, so that a merge is a concatenation. Archives are
 //! written under a temporary name (`.NAME.tmp-PID` beside the output) and renamed when complete:
-//! an interrupted export leaves nothing that looks like a finished archive.
+//! an interrupted export leaves nothing that looks like a finished archive, and the next export
+//! to the same name removes the temporary files of exports whose process no longer runs.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -346,6 +347,13 @@ pub fn run(
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        let stale = crate::archive::remove_stale_temporaries(&output);
+        if stale > 0 {
+            eprintln!(
+                "removed {stale} temporary file(s) that killed exports to {} left",
+                output.display()
+            );
+        }
         let meta = metadata(world, layer, args.tile_format, bounds, center, args.zooms);
         let mut sink = match args.format {
             ArchiveFormat::Pmtiles => Sink::Pmtiles(pmtiles::Writer::new(&dir)?),
