@@ -305,6 +305,33 @@ struct Section {
     landscape: Option<LandscapeConfig>,
 }
 
+/// The checks a species and a material share: `(kind, name)` is a valid name not among
+/// `earlier` (the names of the items of its kind before it), and its named terms `fixed` and its
+/// keyed terms `keyed` (`class.<name>`, `biome.<name>`) are valid ranges.
+fn check_niche_item<'a>(
+    (kind, name): (&str, &str),
+    mut earlier: impl Iterator<Item = &'a String>,
+    fixed: &[(&str, Option<Trapezoid>)],
+    keyed: [(&str, &BTreeMap<String, Trapezoid>); 2],
+) -> Result<(), LandscapeError> {
+    if !crate::names::is_valid_name(name) || earlier.any(|o| o == name) {
+        return Err(LandscapeError::Invalid(format!(
+            "{kind} name `{name}` is invalid or repeated"
+        )));
+    }
+    for (term, t) in fixed {
+        if let Some(t) = t {
+            t.check(&format!("{kind} {name} {term}"))?;
+        }
+    }
+    for (prefix, terms) in keyed {
+        for (key, t) in terms {
+            t.check(&format!("{kind} {name} {prefix}.{key}"))?;
+        }
+    }
+    Ok(())
+}
+
 impl LandscapeConfig {
     /// The default world's landscape (the `[landscape]` section of the embedded
     /// `config/worlds/tienshan.toml`); [`LandscapeConfig::default`] if it cannot be read.
@@ -338,56 +365,36 @@ impl LandscapeConfig {
             return bad("clustering: at most 64 iterations and radius 32".into());
         }
         for (i, s) in self.species.iter().enumerate() {
-            if !crate::names::is_valid_name(&s.name)
-                || self.species[..i].iter().any(|o| o.name == s.name)
-            {
-                return bad(format!("species name `{}` is invalid or repeated", s.name));
-            }
-            for (k, t) in [
-                ("elevation", s.elevation),
-                ("slope", s.slope),
-                ("northness", s.northness),
-                ("wetness", s.wetness),
-            ] {
-                if let Some(t) = t {
-                    t.check(&format!("species {} {k}", s.name))?;
-                }
-            }
-            for (class, t) in &s.class {
-                t.check(&format!("species {} class.{class}", s.name))?;
-            }
-            for (biome, t) in &s.biome {
-                t.check(&format!("species {} biome.{biome}", s.name))?;
-            }
+            check_niche_item(
+                ("species", &s.name),
+                self.species[..i].iter().map(|o| &o.name),
+                &[
+                    ("elevation", s.elevation),
+                    ("slope", s.slope),
+                    ("northness", s.northness),
+                    ("wetness", s.wetness),
+                ],
+                [("class", &s.class), ("biome", &s.biome)],
+            )?;
         }
         for (i, m) in self.materials.iter().enumerate() {
-            if !crate::names::is_valid_name(&m.name)
-                || self.materials[..i].iter().any(|o| o.name == m.name)
-            {
-                return bad(format!("material name `{}` is invalid or repeated", m.name));
-            }
-            for (k, t) in [
-                ("elevation", m.elevation),
-                ("slope", m.slope),
-                ("northness", m.northness),
-                ("curvature", m.curvature),
-                ("wetness", m.wetness),
-            ] {
-                if let Some(t) = t {
-                    t.check(&format!("material {} {k}", m.name))?;
-                }
-            }
+            check_niche_item(
+                ("material", &m.name),
+                self.materials[..i].iter().map(|o| &o.name),
+                &[
+                    ("elevation", m.elevation),
+                    ("slope", m.slope),
+                    ("northness", m.northness),
+                    ("curvature", m.curvature),
+                    ("wetness", m.wetness),
+                ],
+                [("class", &m.class), ("biome", &m.biome)],
+            )?;
             for (sp, t) in &m.vegetation {
                 if !self.species.iter().any(|s| &s.name == sp) {
                     return bad(format!("material {} names unknown species `{sp}`", m.name));
                 }
                 t.check(&format!("material {} vegetation {sp}", m.name))?;
-            }
-            for (class, t) in &m.class {
-                t.check(&format!("material {} class.{class}", m.name))?;
-            }
-            for (biome, t) in &m.biome {
-                t.check(&format!("material {} biome.{biome}", m.name))?;
             }
             if !(m.spread.is_finite() && (0.0..=1.0).contains(&m.spread)) {
                 return bad(format!("material {}: spread must lie in [0, 1]", m.name));
@@ -553,5 +560,56 @@ mod tests {
         assert!(l.species.len() >= 3, "{:?}", l.species_names());
         assert!(l.materials.len() >= 8);
         LandscapeConfig::default().validate().unwrap();
+    }
+
+    /// Species and materials are checked alike: a repeated or invalid name, and a bad range of
+    /// a named or a keyed term, each named in the error.
+    #[test]
+    fn species_and_materials_name_what_is_wrong() {
+        let bad_range = Trapezoid {
+            min: 2.0,
+            max: 1.0,
+            falloff: 0.0,
+        };
+        let error = |l: &LandscapeConfig| match l.validate() {
+            Err(LandscapeError::Invalid(m)) => m,
+            other => panic!("expected an invalid landscape, got {other:?}"),
+        };
+        let base = LandscapeConfig::tienshan();
+
+        let mut l = base.clone();
+        let first = l.species[0].name.clone();
+        l.species[1].name = first.clone();
+        assert_eq!(
+            error(&l),
+            format!("species name `{first}` is invalid or repeated")
+        );
+
+        let mut l = base.clone();
+        l.materials[0].name = "no spaces".into();
+        assert_eq!(
+            error(&l),
+            "material name `no spaces` is invalid or repeated"
+        );
+
+        let mut l = base.clone();
+        l.species[0].slope = Some(bad_range);
+        let name = l.species[0].name.clone();
+        assert!(error(&l).starts_with(&format!("species {name} slope: range [2, 1]")));
+
+        let mut l = base.clone();
+        l.materials[1].curvature = Some(bad_range);
+        let name = l.materials[1].name.clone();
+        assert!(error(&l).starts_with(&format!("material {name} curvature: range")));
+
+        let mut l = base.clone();
+        l.materials[2].class.insert("rock".into(), bad_range);
+        let name = l.materials[2].name.clone();
+        assert!(error(&l).starts_with(&format!("material {name} class.rock: range")));
+
+        let mut l = base;
+        l.species[2].biome.insert("steppe".into(), bad_range);
+        let name = l.species[2].name.clone();
+        assert!(error(&l).starts_with(&format!("species {name} biome.steppe: range")));
     }
 }
