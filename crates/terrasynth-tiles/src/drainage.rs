@@ -1,8 +1,8 @@
 //! The drainage pyramid: upstream area in m² at every zoom.
 //!
 //! - **Native zoom `z_b`**: cut from the whole-world D8 accumulation ([`crate::base_layers`]).
-//! - **Amplified zooms**: D8 on the amplified surface over the tile plus a [`DRAIN_HALO`]-pixel
-//!   halo (priority-flood filled), with sources = cell areas plus the parent level's upstream area
+//! - **Amplified zooms**: D8 on the amplified surface over the tile plus a halo of
+//!   [`drain_halo`] pixels (priority-flood filled), with sources = cell areas plus the parent level's upstream area
 //!   injected where parent flow enters the region: every parent pixel of the ring around the
 //!   region whose steepest descent points into it hands its area to the lowest child of the
 //!   pixel it drains into. The region is a function of the tile's global coordinates only, so a
@@ -30,8 +30,26 @@ use crate::error::TileError;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
 use crate::water::{zero_under_water, WaterLevels, DEPTH, SEA};
 
-/// Halo (pixels, even) of the local drainage routing around an amplified tile.
-pub const DRAIN_HALO: i64 = 128;
+/// Ground the routing halo of an amplified drainage tile reaches at least (metres of the zoom's
+/// Mercator pixel at the equator, within [`MIN_DRAIN_HALO`] and [`MAX_DRAIN_HALO`] pixels): about
+/// twice the side of the catchment of the smallest channel the drainage PNG draws (10⁶ m²), so
+/// that two neighbouring tiles route a drawn channel over the same ground near their border.
+pub const DRAIN_HALO_M: f64 = 2000.0;
+
+/// Smallest routing halo (pixels): every zoom up to 13 uses it.
+pub const MIN_DRAIN_HALO: i64 = 128;
+
+/// Largest routing halo (pixels): the most that keeps a tile's region within its 3×3 tiles and
+/// its parent ring within 2×2 parent tiles, so a deeper halo does not widen the chain below.
+pub const MAX_DRAIN_HALO: i64 = 254;
+
+/// The routing halo (pixels, even, so that the region maps onto whole parent pixels) of an
+/// amplified drainage tile of zoom `z`: [`DRAIN_HALO_M`] in the zoom's equatorial pixels, within
+/// [`MIN_DRAIN_HALO`]–[`MAX_DRAIN_HALO`] (128 up to zoom 13, 210 at 14, 254 from 15).
+pub fn drain_halo(z: u8) -> i64 {
+    let px = (DRAIN_HALO_M / crate::mercator::pixel_size_m(z)).ceil() as i64;
+    (px + px % 2).clamp(MIN_DRAIN_HALO, MAX_DRAIN_HALO)
+}
 
 /// The drainage levels of a world.
 #[derive(Debug)]
@@ -113,7 +131,7 @@ impl DrainageLevels {
         }
         // The routing region: the tile plus an even halo, so that it maps onto whole parent
         // pixels.
-        let h = DRAIN_HALO;
+        let h = drain_halo(z);
         let region = w.grown(h);
         let heights = elevation.window(z, region)?;
         let cells = extent.cell_sizes(z, region.row0, region.rows);
@@ -221,4 +239,41 @@ fn ring(w: Window) -> Vec<(i64, i64)> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The halo reaches about 2 km from zoom 14 on and stays within the bounds that keep a
+    /// tile's chain as narrow as before: its region within its 3×3 tiles, the ring of its parent
+    /// window within 2×2 parent tiles (both parities of the tile's column and row).
+    #[test]
+    fn the_routing_halo_grows_with_depth_within_the_narrow_chain() {
+        let halos: Vec<i64> = (0..=24).map(drain_halo).collect();
+        assert!(
+            halos[..=13].iter().all(|&h| h == MIN_DRAIN_HALO),
+            "{halos:?}"
+        );
+        assert_eq!(halos[14], 210);
+        assert!(
+            halos[15..].iter().all(|&h| h == MAX_DRAIN_HALO),
+            "{halos:?}"
+        );
+        for h in MIN_DRAIN_HALO..=MAX_DRAIN_HALO + 2 {
+            if h % 2 != 0 {
+                continue;
+            }
+            let narrow = [0i64, 1].iter().all(|&t| {
+                let region = tile_window(t, t).grown(h);
+                let (lo, hi) = (region.col0 / 2 - 1, region.col1() / 2 + 1);
+                // Parent tiles of the ring: those of columns lo..hi at zoom z − 1.
+                let parents = hi.div_euclid(256) - lo.div_euclid(256) + 1
+                    - i64::from(hi.rem_euclid(256) == 0);
+                let tiles = (region.col1() - 1).div_euclid(256) - region.col0.div_euclid(256) + 1;
+                parents == 2 && tiles == 3
+            });
+            assert_eq!(narrow, h <= MAX_DRAIN_HALO, "halo {h}");
+        }
+    }
 }
