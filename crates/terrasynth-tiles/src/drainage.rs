@@ -30,7 +30,7 @@ use crate::error::TileError;
 use crate::pyramid::{assemble, overview, tile_window, LevelCache};
 use crate::water::{zero_under_water, WaterLevels, DEPTH, SEA};
 
-/// Ground the routing halo of an amplified drainage tile reaches at least (metres of the zoom's
+/// Ground the routing halo of an amplified drainage tile aims to reach (metres of the zoom's
 /// Mercator pixel at the equator, within [`MIN_DRAIN_HALO`] and [`MAX_DRAIN_HALO`] pixels): about
 /// twice the side of the catchment of the smallest channel the drainage PNG draws (10⁶ m²), so
 /// that two neighbouring tiles route a drawn channel over the same ground near their border.
@@ -245,7 +245,8 @@ fn ring(w: Window) -> Vec<(i64, i64)> {
 mod tests {
     use super::*;
 
-    /// The halo reaches about 2 km from zoom 14 on and stays within the bounds that keep a
+    /// The halo reaches about 2 km at zoom 14 (as far as the bounds allow deeper) and stays within
+    /// the bounds that keep a
     /// tile's chain as narrow as before: its region within its 3×3 tiles, the ring of its parent
     /// window within 2×2 parent tiles (both parities of the tile's column and row).
     #[test]
