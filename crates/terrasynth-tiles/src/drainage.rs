@@ -246,9 +246,9 @@ mod tests {
     use super::*;
 
     /// The halo reaches about 2 km at zoom 14 (as far as the bounds allow deeper) and stays within
-    /// the bounds that keep a
-    /// tile's chain as narrow as before: its region within its 3×3 tiles, the ring of its parent
-    /// window within 2×2 parent tiles (both parities of the tile's column and row).
+    /// the bounds that keep a tile's chain as narrow as before: its region within its 3×3 tiles,
+    /// the ring of its parent window within 2×2 parent tiles (both parities of the tile's column
+    /// and row).
     #[test]
     fn the_routing_halo_grows_with_depth_within_the_narrow_chain() {
         let halos: Vec<i64> = (0..=24).map(drain_halo).collect();
