@@ -256,9 +256,9 @@ fn bench_gradient(c: &mut Criterion) {
     g.finish();
 }
 
-/// The drainage layer's routing of one amplified tile's region (the tile and its 128-px halo:
-/// 512²) on a window of the real terrain: Priority-Flood+ε, D8 receivers and the accumulation
-/// (cells per second).
+/// The drainage layer's routing of one amplified tile's region up to zoom 13 (the tile and its
+/// 128-px halo: 512²) on a window of the real terrain: Priority-Flood+ε, D8 receivers and the
+/// accumulation (cells per second).
 fn bench_routing(c: &mut Criterion) {
     use terrasynth_core::analysis;
     let grid = embedded::tienshan().expect("embedded grid");

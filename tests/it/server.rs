@@ -1027,3 +1027,31 @@ fn a_cold_chain_of_windows_equals_the_chain_of_cached_tiles() {
         .zip(next_warm.iter())
         .all(|(a, b)| a.to_bits() == b.to_bits()));
 }
+
+/// The deeper routing halo (210 pixels at zoom 14, 254 from zoom 15; `drainage::drain_halo`)
+/// keeps drainage a pure function of the tile: on the default world, a tile computed alone equals
+/// the same window of a 2×2 block assembled in a second world loaded from the same store with
+/// cold caches (another request order), bit for bit, at zooms 14 and 15.
+#[test]
+fn deep_drainage_tiles_are_window_invariant_with_their_deeper_halo() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = terrasynth::config::load(None, Vec::new()).unwrap();
+    let store = terrasynth_store::Store::open(&dir.path().join("store")).unwrap();
+    let load = || terrasynth::server::load_worlds(&config, &store).unwrap()["tienshan"].clone();
+    let (alone, block) = (load(), load());
+    // Over the Kyrgyz Ala-Too (the tile-hash list's zoom-14 tile is 11584/6048).
+    for (z, x, y) in [(14u8, 11590u32, 6050u32), (15, 23181, 12101)] {
+        let tile = alone.drainage_tile(z, x, y).unwrap();
+        assert!(
+            tile.iter().any(|&a| a >= 1e6),
+            "zoom {z}: no channel to compare"
+        );
+        let w = Window::new(i64::from(x - 1) * 256, i64::from(y - 1) * 256, 512, 512);
+        let from_block = block.drainage_window(z, w).unwrap();
+        assert_eq!(
+            *tile,
+            from_block.slice(s![256..512, 256..512]).to_owned(),
+            "zoom {z}"
+        );
+    }
+}

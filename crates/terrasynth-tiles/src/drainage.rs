@@ -2,10 +2,10 @@
 //!
 //! - **Native zoom `z_b`**: cut from the whole-world D8 accumulation ([`crate::base_layers`]).
 //! - **Amplified zooms**: D8 on the amplified surface over the tile plus a halo of
-//!   [`drain_halo`] pixels (priority-flood filled), with sources = cell areas plus the parent level's upstream area
-//!   injected where parent flow enters the region: every parent pixel of the ring around the
-//!   region whose steepest descent points into it hands its area to the lowest child of the
-//!   pixel it drains into. The region is a function of the tile's global coordinates only, so a
+//!   [`drain_halo`] pixels (priority-flood filled), with sources = cell areas plus the parent
+//!   level's upstream area injected where parent flow enters the region: every parent pixel of
+//!   the ring around the region whose steepest descent points into it hands its area to the
+//!   lowest child of the pixel it drains into. The region is a function of the tile's global coordinates only, so a
 //!   drainage value is a pure function of `(z, x, y)`: a tile alone equals the same window of any
 //!   larger assembled region, and the halo keeps routing identical near tile borders.
 //! - **Coverage**: upstream area is 0 outside the base's coverage ([`crate::coverage`]), where
@@ -267,11 +267,12 @@ mod tests {
             }
             let narrow = [0i64, 1].iter().all(|&t| {
                 let region = tile_window(t, t).grown(h);
-                let (lo, hi) = (region.col0 / 2 - 1, region.col1() / 2 + 1);
-                // Parent tiles of the ring: those of columns lo..hi at zoom z − 1.
-                let parents = hi.div_euclid(256) - lo.div_euclid(256) + 1
-                    - i64::from(hi.rem_euclid(256) == 0);
-                let tiles = (region.col1() - 1).div_euclid(256) - region.col0.div_euclid(256) + 1;
+                // Tiles holding columns first..=last.
+                let tiles_over =
+                    |first: i64, last: i64| last.div_euclid(256) - first.div_euclid(256) + 1;
+                // The parent window's ring: one column either side of the region's half.
+                let parents = tiles_over(region.col0 / 2 - 1, region.col1() / 2);
+                let tiles = tiles_over(region.col0, region.col1() - 1);
                 parents == 2 && tiles == 3
             });
             assert_eq!(narrow, h <= MAX_DRAIN_HALO, "halo {h}");
