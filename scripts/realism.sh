@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The held-out realism suite (issue #12): six 512² crops of the committed Tien Shan grid, from three
 # windows kept out of the dictionary (high ranges, the Pamir-Alai, low hills and plains), each
-# box-down-sampled ×4 and amplified back by 2 levels, evaluated against the truth with the bicubic
-# and bicubic + fBm baselines. Writes, under $OUT (default target/realism):
+# resampled to square cells as the dictionary's exemplar is (`crop --square`), box-down-sampled
+# ×4 and amplified back by 2 levels, evaluated against the truth with the bicubic and bicubic +
+# fBm baselines. Writes, under $OUT (default target/realism):
 #   heldout.dict, per crop: truth/low/out GeoTIFFs, eval JSON and a hillshade picture
 #   (truth | bicubic | bicubic + fBm | output), and table.md (per crop and mean).
 #
@@ -45,8 +46,8 @@ fi
 
 for entry in "${CROPS[@]}"; do
     read -r name window <<<"$entry"
-    "$BIN" crop --input "$T" --window "$window" --output "$OUT/$name.truth.tif" >/dev/null
-    "$BIN" crop --input "$T" --window "$window" --down 4 --output "$OUT/$name.low.tif" >/dev/null
+    "$BIN" crop --input "$T" --window "$window" --square --output "$OUT/$name.truth.tif" >/dev/null
+    "$BIN" crop --input "$T" --window "$window" --square --down 4 --output "$OUT/$name.low.tif" >/dev/null
     "$BIN" amplify --dictionary "$OUT/heldout.dict" --input "$OUT/$name.low.tif" --levels 2 \
         --output "$OUT/$name.out.tif" "$@" >/dev/null
     "$BIN" eval --truth "$OUT/$name.truth.tif" --input "$OUT/$name.low.tif" \

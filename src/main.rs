@@ -228,6 +228,10 @@ struct CropCli {
     /// Box down-sampling factor after cropping.
     #[arg(long, default_value_t = 1)]
     down: usize,
+    /// Resample the window to square cells first (Lanczos-3 along its finer axis, as dictionary
+    /// builds do with exemplars on longitude/latitude grids), cut to a multiple of 8 cells.
+    #[arg(long)]
+    square: bool,
     /// Output GeoTIFF.
     #[arg(long)]
     output: PathBuf,
@@ -631,6 +635,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 input: a.input,
                 window: a.window,
                 down: a.down,
+                square: a.square,
                 output: a.output.clone(),
             })?;
             println!("wrote {} ({}×{})", a.output.display(), g.cols(), g.rows());

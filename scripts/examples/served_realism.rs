@@ -17,8 +17,8 @@
 //! first use; `WORLD`: any world of the configuration or created through the admin API in that
 //! store, its mosaics centred on the corner of zoom-10 tile `X10/Y10` instead of the default
 //! world's; `EXEMPLAR.tif`: the raster the world's dictionary was cut from, whose own anisotropy,
-//! on its pixel grid as the atoms see it, is printed first: the amplifier carries the exemplar's
-//! axis statistics into every level). Prints a markdown table.
+//! on its pixel grid and on the square cells the atoms are cut from, is printed first: the
+//! amplifier carries the exemplar's axis statistics into every level). Prints a markdown table.
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -29,7 +29,7 @@ use std::path::Path;
 use ndarray::Array2;
 use terrasynth_core::analysis::flood_extent;
 use terrasynth_core::analysis::realism::axis_anisotropy;
-use terrasynth_core::raster::{read_raster_file, ReadLimits};
+use terrasynth_core::raster::{read_raster_file, ReadLimits, SquareCells};
 use terrasynth_test_support::coherence::{decoded_elevation, served_drainage};
 
 /// Upstream area from which the drainage PNG draws a channel (its default `png_min_m2`).
@@ -100,9 +100,14 @@ fn main() -> Result<(), Box<dyn Error>> {
             .elevation()
             .ok_or("the exemplar has no elevation band")?;
         let (rows, cols) = grid.data.dim();
+        // The grid the atoms are cut from: dictionary builds square the cells first.
+        let square = SquareCells::for_grid(&grid.georef, rows, cols).grid(&grid)?;
+        let (sq_rows, sq_cols) = square.data.dim();
         println!(
-            "exemplar {path} ({cols}×{rows}): anisotropy {:.3} on its own pixel grid\n",
-            axis_anisotropy(&grid.filled()?)
+            "exemplar {path} ({cols}×{rows}): anisotropy {:.3} on its own pixel grid, {:.3} on \
+             the square cells ({sq_cols}×{sq_rows}) the atoms are cut from\n",
+            axis_anisotropy(&grid.filled()?),
+            axis_anisotropy(&square.filled()?)
         );
     }
     let world = state

@@ -18,7 +18,9 @@ use terrasynth_core::dictionary::{
     ExemplarOptions, GradientTileSet, Learning,
 };
 use terrasynth_core::landscape::{exemplar_vegetation, WaterConfig};
-use terrasynth_core::raster::{embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits};
+use terrasynth_core::raster::{
+    embedded, read_geotiff_file, read_png_rgb, Grid, ReadLimits, SquareCells,
+};
 use terrasynth_store::{ResolvedWorld, Store, Stored};
 use terrasynth_tiles::{
     ControlMode, DictionaryBand, SpeciesControl, TileError, World, WorldBiome, WorldClasses,
@@ -98,11 +100,11 @@ fn dictionary_alias(world: &WorldConfig, d: &DictionaryConfig) -> String {
     format!("world-{}-{hex}", world.name)
 }
 
-/// What the alias of a dictionary band hashes (unchanged since v2, so stores keep their
-/// dictionaries).
+/// What the alias of a dictionary band hashes. v3: exemplars on longitude/latitude grids are
+/// resampled to square cells, so dictionaries stored under v2 are rebuilt.
 fn dictionary_alias_text(world: &WorldConfig, d: &DictionaryConfig) -> String {
     format!(
-        "v2|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
+        "v3|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
         d.exemplars,
         d.atoms,
         d.patch,
@@ -150,6 +152,7 @@ fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dicti
         // The exemplar's own vegetation rasters replace the niche model's layers: read them
         // first, so that the species hook below cannot fail.
         let mut rasters = BTreeMap::new();
+        let square = SquareCells::for_grid(&grid.georef, grid.rows(), grid.cols());
         for (name, paths) in &cfg.vegetation_rasters {
             let Some(path) = paths.get(e).filter(|p| !p.is_empty()) else {
                 continue;
@@ -169,6 +172,11 @@ fn build_dictionary(world: &WorldConfig, cfg: &DictionaryConfig) -> Result<Dicti
                     0.0
                 }
             });
+            // On the squared cells the exemplar's elevation takes (see `Exemplar::from_grid`).
+            let density = square
+                .resample(&density)
+                .map_err(|e| format!("vegetation raster {path}: {e}"))?
+                .mapv(|d| d.clamp(0.0, 1.0));
             rasters.insert(name.clone(), density);
         }
         let options = ExemplarOptions {

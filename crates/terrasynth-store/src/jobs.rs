@@ -420,7 +420,13 @@ impl Jobs {
                             }
                         });
                     }
-                    class_raster = Some(d);
+                    // On the squared cells the exemplar's elevation takes (labels: nearest).
+                    let square = terrasynth_core::raster::SquareCells::for_grid(
+                        &grid.georef,
+                        grid.rows(),
+                        grid.cols(),
+                    );
+                    class_raster = Some(square.nearest(&d).map_err(|e| params(e.to_string()))?);
                     continue;
                 }
                 if name == crate::ingest::RGB_LAYER {

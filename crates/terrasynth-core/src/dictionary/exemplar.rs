@@ -1,5 +1,6 @@
 //! The one way an exemplar is assembled for a dictionary build, used by the command line, the
-//! configured worlds and the admin API's build jobs: the elevation with its invalid cells filled
+//! configured worlds and the admin API's build jobs: the elevation on square cells (a
+//! longitude/latitude grid's columns resampled: [`SquareCells`]) with its invalid cells filled
 //! (so numeric kernels never see NaN) and kept out of every patch by the validity mask, windows
 //! held out for evaluation, and the extra layers in a fixed order — the caller's own layers, then
 //! the derived layers (`log_area`, `northness`), then the species layers a hook supplies (the
@@ -11,7 +12,7 @@ use super::atoms::LayerKind;
 use super::build::Exemplar;
 use super::derive::derived_layers;
 use super::error::DictionaryError;
-use crate::raster::{CellSizes, Grid};
+use crate::raster::{CellSizes, Grid, SquareCells};
 
 /// One named extra layer of an exemplar: `(name, values on the exemplar's grid, kind)`.
 pub type ExemplarLayer = (String, Array2<f32>, LayerKind);
@@ -77,6 +78,12 @@ impl Exemplar {
     /// The build exemplar of `grid`: elevation with invalid cells filled, a validity mask that
     /// excludes them and the `exclude` windows, the metric cell size, and the layers `extra`,
     /// derived (with `derive`) and `species(filled elevation, cells)`, in that order.
+    ///
+    /// A grid whose cells are not square in metres (longitude/latitude away from the equator) is
+    /// first resampled to square cells ([`SquareCells`]): elevation and continuous `extra` layers
+    /// with its Lanczos-3 taps, class layers by nearest sample, and validity (with the `exclude`
+    /// windows, given in the input's cells) false wherever an invalid or excluded cell was drawn
+    /// on. `extra` layers come on the input's grid; `species` sees the squared elevation and cells.
     pub fn from_grid(
         grid: &Grid,
         options: ExemplarOptions,
@@ -84,33 +91,46 @@ impl Exemplar {
     ) -> Result<Exemplar, DictionaryError> {
         let raster = |e: crate::raster::RasterError| DictionaryError::InvalidParams(e.to_string());
         grid.require_some_valid().map_err(raster)?;
-        let filled = grid.filled().map_err(raster)?;
-        let cells = grid.georef.cell_sizes(grid.rows());
-        let (rows, cols) = filled.dim();
+        let (rows0, cols0) = grid.data.dim();
         for (name, values, _) in &options.extra {
-            if values.dim() != (rows, cols) {
+            if values.dim() != (rows0, cols0) {
                 return Err(DictionaryError::InvalidParams(format!(
-                    "layer `{name}` is {}×{} but the exemplar is {cols}×{rows}",
+                    "layer `{name}` is {}×{} but the exemplar is {cols0}×{rows0}",
                     values.ncols(),
                     values.nrows()
                 )));
             }
         }
-        let mut layers = options.extra;
-        if options.derive {
-            layers.extend(derived_layers(&filled, &cells));
-        }
-        layers.extend(species(&filled, &cells));
-        let mut valid = Array2::from_shape_fn((rows, cols), |(r, c)| grid.is_valid(r, c));
+        // Validity and exclusions in the input's own cells, before squaring.
+        let mut valid = Array2::from_shape_fn((rows0, cols0), |(r, c)| grid.is_valid(r, c));
         for ex in &options.exclude {
-            let r1 = ex.row_end().unwrap_or(usize::MAX).min(rows);
-            let c1 = ex.col_end().unwrap_or(usize::MAX).min(cols);
+            let r1 = ex.row_end().unwrap_or(usize::MAX).min(rows0);
+            let c1 = ex.col_end().unwrap_or(usize::MAX).min(cols0);
             for r in ex.row.min(r1)..r1 {
                 for c in ex.col.min(c1)..c1 {
                     valid[[r, c]] = false;
                 }
             }
         }
+        let square = SquareCells::for_grid(&grid.georef, rows0, cols0);
+        let filled = square
+            .resample(&grid.filled().map_err(raster)?)
+            .map_err(raster)?;
+        let valid = square.all_taps_valid(&valid).map_err(raster)?;
+        let cells = square.georef(&grid.georef).cell_sizes(filled.nrows());
+        let mut layers = Vec::with_capacity(options.extra.len());
+        for (name, values, kind) in options.extra {
+            let values = match kind {
+                LayerKind::Continuous => square.resample(&values),
+                LayerKind::Class { .. } => square.nearest(&values),
+            }
+            .map_err(raster)?;
+            layers.push((name, values, kind));
+        }
+        if options.derive {
+            layers.extend(derived_layers(&filled, &cells));
+        }
+        layers.extend(species(&filled, &cells));
         Ok(Exemplar {
             elevation: filled,
             valid: Some(valid),
@@ -174,6 +194,67 @@ mod tests {
         assert!(ex.elevation[[5, 7]].is_finite());
         // The exclusion (its width overflows) is clamped to the grid.
         assert!(!valid[[39, 49]] && !valid[[38, 45]] && valid[[37, 45]] && valid[[39, 44]]);
+    }
+
+    #[test]
+    fn degree_grids_are_squared_with_their_layers_and_exclusions() {
+        // 15″ cells at 42° N are about 0.74 times as wide as tall: 200 columns become 148.
+        let georef = Georef {
+            crs: crate::raster::Crs::Epsg4326,
+            west: 70.0,
+            north: 42.1,
+            pixel_width: 1.0 / 240.0,
+            pixel_height: 1.0 / 240.0,
+        };
+        let grid = Grid::new(
+            Array2::from_shape_fn((24, 200), |(r, c)| (r + 2 * c) as f32),
+            georef,
+        );
+        let extra = vec![
+            (
+                "wetness".to_string(),
+                Array2::from_elem((24, 200), 0.25f32),
+                LayerKind::Continuous,
+            ),
+            (
+                "soil".to_string(),
+                Array2::from_shape_fn((24, 200), |(_, c)| (c / 50) as f32),
+                LayerKind::Class {
+                    group: "soil".to_string(),
+                },
+            ),
+        ];
+        let exclude = vec![PixelWindow {
+            col: 100,
+            row: 0,
+            width: 100,
+            height: 24,
+        }];
+        let ex = Exemplar::from_grid(
+            &grid,
+            ExemplarOptions {
+                extra,
+                exclude,
+                derive: false,
+            },
+            |filled, cells| {
+                assert_eq!(filled.dim(), (24, 148));
+                assert!((cells.dx[0] / cells.dy[0] - 1.0).abs() < 0.02);
+                Vec::new()
+            },
+        )
+        .unwrap();
+        assert_eq!(ex.elevation.dim(), (24, 148));
+        assert!((ex.cell_m - 463.3).abs() < 2.0, "{}", ex.cell_m);
+        assert!(ex.layers[0].1.iter().all(|v| (v - 0.25).abs() < 1e-6));
+        assert!(ex.layers[1].1.iter().all(|v| v.fract() == 0.0));
+        // Input column 100 sits at output column 74.3 (source coordinate (j + ½)/0.743 − ½);
+        // Lanczos-3 widened to the output spacing reaches 3 output columns (4.04 input columns),
+        // so column 72 (centre 97.1) is the first to draw on it and 71 (centre 95.7) is not.
+        let valid = ex.valid.unwrap();
+        let first = (0..148).find(|&c| !valid[[5, c]]);
+        assert_eq!(first, Some(72));
+        assert!((74..148).all(|c| !valid[[23, c]]));
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Rasters: grids on `ndarray::Array2<f32>` with a georeference (EPSG:4326, EPSG:3857 or a
 //! projected CRS in metres: [`projection`]) and a nodata mask, reprojection of projected grids
-//! onto longitude/latitude ([`reproject`]), multi-layer rasters, and the file formats terrasynth reads and writes (GeoTIFF,
+//! onto longitude/latitude ([`reproject`]), multi-layer rasters, resampling to square cells ([`square`]), and the file formats terrasynth reads and writes (GeoTIFF,
 //! 16-bit PNG, OpenEXR). Nothing here does HTTP or async work.
 
 pub mod boxfilter;
@@ -15,6 +15,7 @@ pub mod openexr;
 pub mod png16;
 pub mod projection;
 pub mod reproject;
+pub mod square;
 
 pub use boxfilter::{box2, box_down2_rows, reduce2x2};
 pub use error::RasterError;
@@ -25,3 +26,4 @@ pub use io::{read_raster_file, sniff, write_raster_file, RasterFormat};
 pub use limits::ReadLimits;
 pub use openexr::{read_exr, write_exr};
 pub use png16::{read_png16, read_png_rgb, write_png16};
+pub use square::SquareCells;
