@@ -104,7 +104,8 @@ impl SquareCells {
         let dx = cells.dx.iter().sum::<f64>() / n;
         let dy = cells.dy.iter().sum::<f64>() / n;
         let width_over_height = dx / dy;
-        let (axis, ratio) = if !width_over_height.is_finite() || width_over_height <= 0.0 {
+        let empty = rows == 0 || cols == 0;
+        let (axis, ratio) = if empty || !width_over_height.is_finite() || width_over_height <= 0.0 {
             (None, 1.0)
         } else if width_over_height < 1.0 - Self::TOLERANCE {
             (Some(SquaredAxis::Columns), width_over_height)
@@ -324,6 +325,13 @@ mod tests {
     fn square_grids_are_left_alone_and_wide_cells_lose_rows() {
         let metric = SquareCells::for_grid(&Georef::local_metric(30.0), 10, 12);
         assert!(metric.is_identity());
+        // Nothing to resample in an empty grid, whatever its cells.
+        for (rows, cols) in [(0, 12), (10, 0), (0, 0)] {
+            let empty = SquareCells::for_grid(&gebco(42.5), rows, cols);
+            assert!(empty.is_identity());
+            let none = Array2::<f32>::zeros((rows, cols));
+            assert_eq!(empty.resample(&none).unwrap().dim(), (rows, cols));
+        }
         let a = Array2::from_shape_fn((10, 12), |(r, c)| (r * 12 + c) as f32);
         assert_eq!(metric.resample(&a).unwrap(), a);
         // Near the equator a 2:1 degree cell is twice as wide as tall.
