@@ -168,6 +168,24 @@ fn square_crops_have_square_cells_and_their_low_inputs_the_same_extent() {
     );
     let (dx, dy) = read(&truth).georef.cell_size_m(32.0);
     assert!(dx / dy < 0.9, "{dx} × {dy}");
+    // Too narrow to keep 8 squared columns, or a factor that does not divide the squared size:
+    // a clear error (exit code 1, not a panic) and no file.
+    let none = dir.path().join("none.tif");
+    for (window, down, says) in [
+        ("40,20,4,64", "1", "too small to square"),
+        ("40,20,128,64", "3", "must divide"),
+    ] {
+        let out = bin()
+            .args(["crop", "--input", TIENSHAN, "--window", window, "--square"])
+            .args(["--down", down, "--output"])
+            .arg(&none)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{window}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{window}: {err}");
+        assert!(!none.exists());
+    }
 }
 
 #[test]
