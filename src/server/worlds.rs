@@ -101,10 +101,11 @@ fn dictionary_alias(world: &WorldConfig, d: &DictionaryConfig) -> String {
 }
 
 /// What the alias of a dictionary band hashes. v3: exemplars on longitude/latitude grids are
-/// resampled to square cells, so dictionaries stored under v2 are rebuilt.
+/// resampled to square cells, so dictionaries stored under v2 are rebuilt. v4: that resampling
+/// no longer overshoots (main-lobe clamp), so v3 dictionaries are rebuilt.
 fn dictionary_alias_text(world: &WorldConfig, d: &DictionaryConfig) -> String {
     format!(
-        "v3|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
+        "v4|{:?}|{}|{}|{}|{}|{}|{:?}|{:?}|{:?}",
         d.exemplars,
         d.atoms,
         d.patch,

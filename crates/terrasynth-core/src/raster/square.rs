@@ -15,7 +15,10 @@
 //! amplified tile after it — smoother east–west than north–south (the default world's zoom-10
 //! mosaic read pixel-axis anisotropy 1.68 against 1.09–1.23 with Lanczos-3). Lanczos's price is
 //! ringing: small overshoots beside sharp steps, which on flat, quantised plains make small
-//! closed depressions.
+//! closed depressions. So where the input values under an output's main lobe (the inputs closer
+//! than one output spacing) span at most [`FLAT_SPAN`], the output is clamped to their span: on
+//! flats nothing goes below or above what the input holds around it, while in relief the
+//! negative lobes keep sharpening crests and valleys.
 //!
 //! [`SquareCells::resample`] precomputes each output sample's taps once; [`resample_naive`] is its
 //! reference, which evaluates the kernel afresh for every output value.
@@ -67,6 +70,9 @@ pub struct SquareCells {
     /// For each output index along `axis`: the input indices (edge-clamped) and their
     /// normalised weights, in increasing order of the unclamped index.
     taps: Vec<Vec<(usize, f64)>>,
+    /// For each output index along `axis`: the first and last input index (edge-clamped) under
+    /// the kernel's main lobe, whose values bound the output (see [`main_lobe`]).
+    lobes: Vec<(usize, usize)>,
 }
 
 /// The source coordinate of output sample `j` and the range of source indices its kernel reaches
@@ -90,6 +96,42 @@ fn taps_of(j: usize, ratio: f64, len: usize) -> Vec<(usize, f64)> {
         t.1 /= sum;
     }
     taps
+}
+
+/// The input indices (edge-clamped, first and last) under the main lobe of output sample `j`'s
+/// kernel: those strictly closer to its source coordinate than one output spacing. Where their
+/// values are flat, the output is clamped to their range: no value beyond what the input holds
+/// around it, hence no new pit or peak beside a quantisation step.
+fn main_lobe(j: usize, ratio: f64, len: usize) -> (usize, usize) {
+    let (u, _, _) = support(j, ratio);
+    let spacing = 1.0 / ratio;
+    let top = len.saturating_sub(1) as i64;
+    let first = ((u - spacing).floor() as i64 + 1).clamp(0, top) as usize;
+    let last = ((u + spacing).ceil() as i64 - 1).clamp(0, top) as usize;
+    (first, last)
+}
+
+/// Main lobes whose input values span at most this much (one step of an integer-metre DEM) are
+/// flat: their outputs are clamped to that span. Where the values span more (relief), Lanczos's
+/// overshoot is kept: it is the sharpness of crests and valleys, and clamping it there smoothed
+/// the squared axis of every mountain atom (served zoom-14 mosaics read pixel-axis anisotropy
+/// down to 0.42 and channel continuity down to 83 % with a clamp everywhere).
+pub const FLAT_SPAN: f64 = 1.0;
+
+/// `acc` clamped to the range of the values over `lobe` when that range is flat
+/// (at most [`FLAT_SPAN`]); otherwise `acc` unchanged.
+fn clamp_to_flat_lobe(acc: f64, lobe: (usize, usize), value_at: impl Fn(usize) -> f32) -> f64 {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for k in lobe.0..=lobe.1 {
+        let v = f64::from(value_at(k));
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if hi - lo <= FLAT_SPAN {
+        acc.clamp(lo, hi)
+    } else {
+        acc
+    }
 }
 
 impl SquareCells {
@@ -124,9 +166,12 @@ impl SquareCells {
             Some(SquaredAxis::Rows) => (rows, output.0),
             _ => (cols, output.1),
         };
-        let taps = match axis {
-            None => Vec::new(),
-            Some(_) => (0..out_len).map(|j| taps_of(j, ratio, len)).collect(),
+        let (taps, lobes) = match axis {
+            None => (Vec::new(), Vec::new()),
+            Some(_) => (
+                (0..out_len).map(|j| taps_of(j, ratio, len)).collect(),
+                (0..out_len).map(|j| main_lobe(j, ratio, len)).collect(),
+            ),
         };
         SquareCells {
             axis,
@@ -134,6 +179,7 @@ impl SquareCells {
             input: (rows, cols),
             output,
             taps,
+            lobes,
         }
     }
 
@@ -179,7 +225,9 @@ impl SquareCells {
         }
     }
 
-    /// `values` (of the input shape) resampled with the Lanczos-3 taps.
+    /// `values` (of the input shape) resampled with the Lanczos-3 taps, each output clamped to
+    /// the range of the input values under its kernel's main lobe where that range is flat
+    /// ([`FLAT_SPAN`]).
     pub fn resample(&self, values: &Array2<f32>) -> Result<Array2<f32>, RasterError> {
         self.check(values.dim())?;
         let Some(axis) = self.axis else {
@@ -191,12 +239,12 @@ impl SquareCells {
             SquaredAxis::Rows => (Axis(1), Axis(1)),
         };
         for (src, mut dst) in values.axis_iter(lanes_in).zip(out.axis_iter_mut(lanes_out)) {
-            for (o, taps) in dst.iter_mut().zip(&self.taps) {
+            for ((o, taps), &lobe) in dst.iter_mut().zip(&self.taps).zip(&self.lobes) {
                 let mut acc = 0.0f64;
                 for &(k, w) in taps {
                     acc += w * f64::from(src[k]);
                 }
-                *o = acc as f32;
+                *o = clamp_to_flat_lobe(acc, lobe, |k| src[k]) as f32;
             }
         }
         Ok(out)
@@ -256,7 +304,9 @@ impl SquareCells {
 
 /// The reference of [`SquareCells::resample`]: every output value evaluates its kernel weights
 /// afresh from the definition (source coordinate `u = (j + ½)/ratio − ½`, weights
-/// `lanczos3((u − k)·ratio)` over the reach `3/ratio`, edge-clamped, normalised to sum 1).
+/// `lanczos3((u − k)·ratio)` over the reach `3/ratio`, edge-clamped, normalised to sum 1), and
+/// clamps it to the lowest and highest input value with `|u − k| < 1/ratio` when those differ by
+/// at most [`FLAT_SPAN`].
 pub fn resample_naive(values: &Array2<f32>, axis: SquaredAxis, ratio: f64) -> Array2<f32> {
     let (rows, cols) = values.dim();
     let shrink = |len: usize| ((len as f64 * ratio).floor() as usize).max(1);
@@ -272,19 +322,29 @@ pub fn resample_naive(values: &Array2<f32>, axis: SquaredAxis, ratio: f64) -> Ar
         let u = (j as f64 + 0.5) / ratio - 0.5;
         let reach = 3.0 / ratio;
         let (mut num, mut den) = (0.0f64, 0.0f64);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         let mut k = (u - reach).ceil() as i64;
         while k as f64 <= u + reach {
             let w = lanczos3((u - k as f64) * ratio);
             let i = k.clamp(0, len as i64 - 1) as usize;
-            let v = match axis {
+            let v = f64::from(match axis {
                 SquaredAxis::Columns => values[[r, i]],
                 SquaredAxis::Rows => values[[i, c]],
-            };
-            num += w * f64::from(v);
+            });
+            num += w * v;
             den += w;
+            if (u - k as f64).abs() < 1.0 / ratio {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
             k += 1;
         }
-        (num / den) as f32
+        let v = num / den;
+        (if hi - lo <= FLAT_SPAN {
+            v.clamp(lo, hi)
+        } else {
+            v
+        }) as f32
     })
 }
 
@@ -360,6 +420,44 @@ mod tests {
             let u = (j as f64 + 0.5) / ratio - 0.5;
             assert!((f64::from(out[[3, j]]) - 2.0 * u).abs() < 0.05, "{j}");
         }
+    }
+
+    #[test]
+    fn steps_are_not_overshot_so_quantised_plains_gain_no_pits() {
+        let plan = SquareCells::for_grid(&gebco(42.5), 3, 120);
+        // A one-metre step, as on a quantised plain: unclamped Lanczos-3 rings below 300 on the
+        // low side and above 301 on the high side.
+        let step = Array2::from_shape_fn((3, 120), |(_, c)| if c < 60 { 300.0f32 } else { 301.0 });
+        let out = plan.resample(&step).unwrap();
+        assert!(out.iter().all(|&v| (300.0..=301.0).contains(&v)), "{out:?}");
+        // Far from the step on either side the levels are kept exactly, and across it the output
+        // still climbs within about one output column (sharp, not smeared).
+        assert_eq!(out[[1, 5]], 300.0);
+        assert_eq!(out[[1, out.ncols() - 5]], 301.0);
+        let between = out
+            .row(1)
+            .iter()
+            .filter(|&&v| v > 300.0 && v < 301.0)
+            .count();
+        assert!(
+            (1..=3).contains(&between),
+            "{between} columns between the levels"
+        );
+        // A single low cell in relief stays the lowest value around it, never deepened.
+        let mut pit = Array2::from_elem((3, 120), 500.0f32);
+        pit[[1, 60]] = 490.0;
+        let out = plan.resample(&pit).unwrap();
+        let low = out.iter().copied().fold(f32::INFINITY, f32::min);
+        assert!(low >= 490.0, "{low}");
+        // Relief keeps Lanczos's sharpening: a 100 m cliff in a 2 m-per-cell slope (no flat
+        // lobe) still overshoots the slope at the cliff's foot and top.
+        let cliff = |c: f64| 2.0 * c + if c < 59.5 { 0.0 } else { 100.0 };
+        let ramp = Array2::from_shape_fn((3, 120), |(_, c)| cliff(c as f64) as f32);
+        let out = plan.resample(&ramp).unwrap();
+        let ratio = plan.decimation().unwrap().1;
+        let off = |j: usize| f64::from(out[[1, j]]) - cliff((j as f64 + 0.5) / ratio - 0.5);
+        assert!((30..44).any(|j| off(j) < -1.0), "no undershoot at the foot");
+        assert!((45..60).any(|j| off(j) > 1.0), "no overshoot at the top");
     }
 
     #[test]

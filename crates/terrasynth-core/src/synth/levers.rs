@@ -97,10 +97,11 @@ impl Default for Levers {
     /// The served amplifier: detail amplitude from the parent's finest octave (0.58 of it where
     /// that octave is steep, 0.8 where it is gentle; no floor: with the gentle roughness the
     /// floor only cost drainage figures); Kaiser-6 correction in two passes; pits breached
-    /// within 8 cells where the terrain rises at 5 % or more around them, within 4 cells on
-    /// flats (the shorter reaches keep the upstream-area distribution: deep, narrow channels
-    /// cut far through the detail steal the flow of the cells around them); each primitive's
-    /// atom picked among the 8 best matches by a hash of its lattice point.
+    /// within 14 cells where the terrain rises at 5 % or more around them, within 2 cells on
+    /// flats (longer reaches cost the upstream-area distribution: deep, narrow channels cut far
+    /// through the detail steal the flow of the cells around them; on flats most closed
+    /// depressions are real); each primitive's atom picked among the 8 best matches by a hash
+    /// of its lattice point.
     fn default() -> Self {
         Levers {
             consistent_split: false,
@@ -113,8 +114,8 @@ impl Default for Levers {
             octave_match: 0.0,
             kernel: KernelKind::Kaiser6,
             passes: 2,
-            breach: 8,
-            breach_flat: 4,
+            breach: 14,
+            breach_flat: 2,
             steep_slope: 0.05,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
