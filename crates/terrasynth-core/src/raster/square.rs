@@ -488,6 +488,7 @@ mod tests {
             cols in 1usize..60,
             north in 30.0f64..70.0,
             wide in any::<bool>(),
+            quantised in any::<bool>(),
             seed in any::<u64>(),
         ) {
             let georef = if wide {
@@ -497,9 +498,15 @@ mod tests {
             };
             let plan = SquareCells::for_grid(&georef, rows, cols);
             let mut s = seed;
+            // Relief (values thousands of metres apart) or a quantised plain (whole metres
+            // within 0–2 m, where main lobes are flat and the clamp decides the output).
             let values = Array2::from_shape_fn((rows, cols), |_| {
                 s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (s >> 40) as f32 / 1000.0 - 5000.0
+                if quantised {
+                    300.0 + (s >> 62) as f32 % 3.0
+                } else {
+                    (s >> 40) as f32 / 1000.0 - 5000.0
+                }
             });
             let fast = plan.resample(&values).unwrap();
             match plan.decimation() {
