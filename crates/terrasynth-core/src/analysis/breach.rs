@@ -60,23 +60,28 @@ impl BreachRule {
         }
     }
 
-    /// The reach of pit `(r, c)` of value `zq` (at least [`RISE_REACH`] cells from every edge).
-    fn reach(&self, z: &[f32], cols: usize, r: usize, c: usize, zq: f32) -> usize {
+    /// The reach of pit `(r, c)` of value `zq` (at least [`RISE_REACH`] cells from every edge),
+    /// and whether its search can be skipped: a reach of at most [`RISE_REACH`] cells with no
+    /// cell strictly below `zq` within [`RISE_REACH`] finds no goal (every cell of the box is
+    /// reachable), so its search would leave the pit as it is.
+    fn reach(&self, z: &[f32], cols: usize, r: usize, c: usize, zq: f32) -> (usize, bool) {
         if self.flat_radius >= self.radius {
-            return self.radius;
+            return (self.radius, false);
         }
         let k = RISE_REACH;
-        let mut top = zq;
+        let (mut top, mut lower) = (zq, false);
         for rr in r - k..=r + k {
             for &v in &z[rr * cols + c - k..=rr * cols + c + k] {
                 top = top.max(v);
+                lower |= v < zq;
             }
         }
-        if top - zq >= self.steep_rise {
+        let reach = if top - zq >= self.steep_rise {
             self.radius
         } else {
             self.flat_radius
-        }
+        };
+        (reach, reach <= k && !lower)
     }
 }
 
@@ -182,11 +187,11 @@ struct Search {
     heap: QuadHeap<Item>,
     /// The path of the current channel, goal last.
     path: Vec<(usize, usize)>,
-    /// Row and column of every framed-box cell (no division in the search loop).
-    rc: Vec<(u32, u32)>,
     /// Offset in `z` of every framed-box cell from the box's first cell, for rows `offs_cols`
     /// wide (rebuilt when the width changes).
     offs: Vec<usize>,
+    /// The neighbour offsets of `steps` in `z`, for rows `offs_cols` wide.
+    z_steps: [isize; 8],
     offs_cols: usize,
 }
 
@@ -220,10 +225,8 @@ impl Search {
             steps,
             heap: QuadHeap::default(),
             path: Vec::new(),
-            rc: (0..side * side)
-                .map(|c| ((c / side) as u32, (c % side) as u32))
-                .collect(),
             offs: Vec::new(),
+            z_steps: [0; 8],
             offs_cols: usize::MAX,
         }
     }
@@ -231,22 +234,9 @@ impl Search {
     /// The channel from pit `(r, c)` of the row-major `z` (`cols` wide; the pit at least
     /// `radius` cells from every edge), appended to `out` if a strictly lower cell lies within
     /// the radius (and `f32` holds a descending grade to it); `out` is left as it was otherwise.
-    fn channel(
-        &mut self,
-        z: &[f32],
-        cols: usize,
-        (r, c): (usize, usize),
-        limit: usize,
-        out: &mut Channel,
-    ) {
+    /// The box's frame of sentinels bounds the search, so its loop tests no coordinates.
+    fn channel(&mut self, z: &[f32], cols: usize, (r, c): (usize, usize), out: &mut Channel) {
         let (side, radius) = (self.side, self.radius);
-        if limit == 0 {
-            return;
-        }
-        let (lo, hi) = (
-            radius + 1 - limit.min(radius),
-            radius + 1 + limit.min(radius),
-        );
         if self.generation >= u32::MAX - 1 {
             // Stamps would collide with the sentinels: start afresh.
             *self = Search::new(radius);
@@ -257,16 +247,14 @@ impl Search {
         // Framed-box cell (br, bc) is cell (r − radius − 1 + br, c − radius − 1 + bc) of z (the
         // frame may lie one cell outside z; it is never read).
         if self.offs_cols != cols {
-            self.offs = self
-                .rc
-                .iter()
-                .map(|&(br, bc)| br as usize * cols + bc as usize)
+            self.offs = (0..side * side)
+                .map(|cell| cell / side * cols + cell % side)
                 .collect();
+            self.z_steps = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
             self.offs_cols = cols;
         }
         let base = (r * cols + c).wrapping_sub((radius + 1) * cols + radius + 1);
         let offs = &self.offs;
-        let at = |cell: usize| z[base.wrapping_add(offs[cell])];
         let zq = z[r * cols + c];
         let start = (radius + 1) * side + radius + 1;
         self.dist[start] = 0.0;
@@ -279,22 +267,19 @@ impl Search {
                 continue;
             }
             self.done[cell] = gen;
-            if at(cell) < zq {
+            let zi = base.wrapping_add(offs[cell]);
+            if z[zi] < zq {
                 goal = Some(cell);
                 break;
             }
-            for &(off, step_cost) in &self.steps {
+            for (&(off, step_cost), &z_step) in self.steps.iter().zip(&self.z_steps) {
                 let n = cell.wrapping_add_signed(off);
                 let stamp = self.done[n];
                 if stamp == gen || stamp == u32::MAX {
                     continue;
                 }
-                let (nr, nc) = self.rc[n];
-                let (nr, nc) = (nr as usize, nc as usize);
-                if nr < lo || nr > hi || nc < lo || nc > hi {
-                    continue;
-                }
-                let nd = cost + ((f64::from(at(n)) - f64::from(zq)).max(0.0) + step_cost);
+                let zn = z[zi.wrapping_add_signed(z_step)];
+                let nd = cost + ((f64::from(zn) - f64::from(zq)).max(0.0) + step_cost);
                 if self.seen[n] != gen || nd < self.dist[n] {
                     self.seen[n] = gen;
                     self.dist[n] = nd;
@@ -379,33 +364,50 @@ pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -
         .map_init(Vec::new, |lowest, r| {
             lowest_neighbours(v, cols, r, radius..cols - radius, lowest);
             let here = &v[r * cols + radius..r * cols + cols - radius];
-            here.iter()
-                .zip(lowest.iter())
-                .enumerate()
+            let mut row_pits = Vec::new();
+            for (k, (&z, &low)) in here.iter().zip(lowest.iter()).enumerate() {
                 // A cell with a strictly lower neighbour is no pit; the others are tested.
-                .filter(|&(k, (&z, &low))| !(low < z) && is_pit(v, cols, origin, r, radius + k))
-                .map(|(k, _)| (r, radius + k))
-                .collect::<Vec<_>>()
+                if !(low < z) && is_pit(v, cols, origin, r, radius + k) {
+                    row_pits.push((r, radius + k));
+                }
+            }
+            row_pits
         })
         .flatten_iter()
         .collect();
     // Channels in pit order (so that equal minima keep the same bits whatever the threads).
+    // One search per reach, each boxed by its own frame; the flat one made on first use.
     let channels: Vec<Channel> = pits
         .par_chunks(PITS_PER_TASK)
         .map_init(
-            || Search::new(radius),
-            |s, task| {
+            || (Search::new(radius), None::<Search>),
+            |(steep, flat), task| {
                 let mut out = Channel::new();
                 for &(r, c) in task {
-                    let limit = rule.reach(v, cols, r, c, v[r * cols + c]);
-                    s.channel(v, cols, (r, c), limit, &mut out);
+                    let (reach, skip) = rule.reach(v, cols, r, c, v[r * cols + c]);
+                    if reach == 0 || skip {
+                        continue;
+                    }
+                    let search = if reach >= radius {
+                        &mut *steep
+                    } else {
+                        flat.get_or_insert_with(|| Search::new(reach))
+                    };
+                    search.channel(v, cols, (r, c), &mut out);
                 }
                 out
             },
         )
         .collect();
     let (ir, ic) = (rows - 2 * m, cols - 2 * m);
-    let mut out = z.slice(s![m..m + ir, m..m + ic]).to_owned();
+    // The inner window, copied row by row (one `memcpy` each, not element by element).
+    let mut inner = Vec::with_capacity(ir * ic);
+    for r in m..m + ir {
+        inner.extend_from_slice(&v[r * cols + m..r * cols + m + ic]);
+    }
+    let Ok(mut out) = Array2::from_shape_vec((ir, ic), inner) else {
+        return z.slice(s![m..m + ir, m..m + ic]).to_owned();
+    };
     for &((r, c), t) in channels.iter().flatten() {
         if r >= m && c >= m && r < m + ir && c < m + ic {
             let o = &mut out[[r - m, c - m]];
