@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # `cargo install --path .` works (part of .ci/run): the installed binary, run from a directory
 # with no configuration, serves the default world (embedded data and configuration) and the web
-# map with its MapLibre GL JS files. CI installs the debug profile into the shared target
-# directory (`--debug --target-dir target`) so that it reuses the test build; a user's plain
-# `cargo install --path .` builds the release profile, with the same code.
+# map with its MapLibre GL JS files. CI installs the test profile into the shared target
+# directory (`--profile test --target-dir target`) so that it reuses the build `cargo test` has just
+# made (Cargo.toml keeps the two builds' features and build-script settings the same, so nothing
+# is recompiled); a user's plain `cargo install --path .` builds the release profile, with the
+# same code.
 #
 # Usage: scripts/install_test.sh
 set -euo pipefail
@@ -19,7 +21,12 @@ cleanup() {
 }
 trap cleanup EXIT
 echo "install-test: cargo install --path . --root $root"
-cargo install --quiet --path "$src" --root "$root" --debug --locked --target-dir "$src/target"
+cargo install --path "$src" --root "$root" --profile test --locked --target-dir "$src/target" \
+    2>"$root/install.log" || { cat "$root/install.log" >&2; exit 1; }
+# Not a failure, a hint for whoever finds this step slow: the build should be the test build's.
+recompiled=$(grep -c '^ *Compiling ' "$root/install.log" || true)
+[ "$recompiled" -eq 0 ] ||
+    echo "install-test: note: $recompiled crates recompiled; the features of the test build and of the server alone differ (see the feature-unification block in Cargo.toml)" >&2
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 cd "$elsewhere"
 TERRASYNTH_STORE_DIR="$elsewhere/store" "$root/bin/terrasynth" serve --listen "127.0.0.1:$port" \
