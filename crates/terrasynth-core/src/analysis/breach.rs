@@ -10,8 +10,11 @@
 //! - cells are ordered by `(value, global row, global column)`; a *pit* is a cell below every
 //!   8-neighbour in that order (so a flat has few pits, at its first cells);
 //! - from pit `q` (value `z_q`), a Dijkstra search over the cells within Chebyshev distance
-//!   `radius` of `q`, with entry cost `max(0, z − z_q) + STEP_COST · step length` (the depth to
-//!   carve, plus a small length term; diagonal steps are √2 long), heap ordered by
+//!   `radius` of `q`, with entry cost `max(0, z − z_q) · L + STEP_COST · L` (`L`: the step's
+//!   length, √2 for diagonal steps; the volume of trench to carve per unit width, plus a small
+//!   length term) — or, with [`BreachRule::volume`] off, `max(0, z − z_q) + STEP_COST · L` (the
+//!   depth alone, which makes a diagonal step carve √2 of channel for the price of one and draws
+//!   channels along the diagonals) — heap ordered by
 //!   `(cost, global index)`, ends at the first popped cell strictly lower than `z_q`; such goal
 //!   cells are not expanded. No goal within the radius: the pit is left as it is;
 //! - along the path `q = c_0, c_1, …, c_n` (every `c_i`, `0 < i < n`, is at least `z_q`, or it
@@ -48,15 +51,19 @@ pub struct BreachRule {
     pub flat_radius: usize,
     /// Rise (same unit as the surface) within [`RISE_REACH`] cells of a pit that makes it steep.
     pub steep_rise: f32,
+    /// Weigh each step's carve depth by its length (the trench's volume): channels cost the same
+    /// per metre in every direction. Off: the depth alone, per cell, whatever the step's length.
+    pub volume: bool,
 }
 
 impl BreachRule {
-    /// Every pit searches `radius` cells.
+    /// Every pit searches `radius` cells; costs by volume.
     pub fn uniform(radius: usize) -> Self {
         BreachRule {
             radius,
             flat_radius: radius,
             steep_rise: 0.0,
+            volume: true,
         }
     }
 
@@ -88,8 +95,16 @@ impl BreachRule {
 /// Chebyshev reach of the neighbourhood whose rise tells steep pits from flat ones.
 pub const RISE_REACH: usize = 2;
 
-/// Length of a diagonal step relative to a cardinal one in the search's length term.
+/// Length of a diagonal step relative to a cardinal one.
 const DIAGONAL_STEP: f64 = std::f64::consts::SQRT_2;
+
+/// The entry cost of a step of `length` into a cell `depth` above the pit: `depth · w +
+/// STEP_COST · length`, `w` the length when costs go by volume, 1 otherwise. The fast search and
+/// its reference both call this, so their sums agree bit for bit.
+#[inline]
+fn step_weights(length: f64, volume: bool) -> (f64, f64) {
+    (if volume { length } else { 1.0 }, STEP_COST * length)
+}
 
 /// Whether `(za, ia)` comes before `(zb, ib)` in the cell order (value by IEEE comparison, so
 /// `−0 = +0` and NaN is below nothing, then global index).
@@ -173,6 +188,8 @@ const PITS_PER_TASK: usize = 64;
 /// when their stamp equals its generation, so nothing is cleared between pits.
 struct Search {
     radius: usize,
+    /// Costs by volume ([`BreachRule::volume`]).
+    volume: bool,
     /// Side of the framed box, `2·radius + 3`.
     side: usize,
     dist: Vec<f64>,
@@ -182,8 +199,8 @@ struct Search {
     /// Generation in which the cell was popped (sentinels: `u32::MAX`).
     done: Vec<u32>,
     generation: u32,
-    /// Neighbour offsets in the framed box and their length costs.
-    steps: [(isize, f64); 8],
+    /// Neighbour offsets in the framed box and their [`step_weights`].
+    steps: [(isize, (f64, f64)); 8],
     heap: QuadHeap<Item>,
     /// The path of the current channel, goal last.
     path: Vec<(usize, usize)>,
@@ -196,7 +213,7 @@ struct Search {
 }
 
 impl Search {
-    fn new(radius: usize) -> Self {
+    fn new(radius: usize, volume: bool) -> Self {
         let side = 2 * radius + 3;
         let mut done = vec![0u32; side * side];
         for r in 0..side {
@@ -212,10 +229,11 @@ impl Search {
             } else {
                 1.0
             };
-            (dr * side as isize + dc, STEP_COST * step)
+            (dr * side as isize + dc, step_weights(step, volume))
         });
         Search {
             radius,
+            volume,
             side,
             dist: vec![f64::INFINITY; side * side],
             pred: vec![u32::MAX; side * side],
@@ -239,7 +257,7 @@ impl Search {
         let (side, radius) = (self.side, self.radius);
         if self.generation >= u32::MAX - 1 {
             // Stamps would collide with the sentinels: start afresh.
-            *self = Search::new(radius);
+            *self = Search::new(radius, self.volume);
         }
         self.generation += 1;
         let gen = self.generation;
@@ -272,14 +290,15 @@ impl Search {
                 goal = Some(cell);
                 break;
             }
-            for (&(off, step_cost), &z_step) in self.steps.iter().zip(&self.z_steps) {
+            for (&(off, (per_m, length_cost)), &z_step) in self.steps.iter().zip(&self.z_steps) {
                 let n = cell.wrapping_add_signed(off);
                 let stamp = self.done[n];
                 if stamp == gen || stamp == u32::MAX {
                     continue;
                 }
                 let zn = z[zi.wrapping_add_signed(z_step)];
-                let nd = cost + ((f64::from(zn) - f64::from(zq)).max(0.0) + step_cost);
+                let depth = (f64::from(zn) - f64::from(zq)).max(0.0);
+                let nd = cost + (depth * per_m + length_cost);
                 if self.seen[n] != gen || nd < self.dist[n] {
                     self.seen[n] = gen;
                     self.dist[n] = nd;
@@ -380,7 +399,7 @@ pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -
     let channels: Vec<Channel> = pits
         .par_chunks(PITS_PER_TASK)
         .map_init(
-            || (Search::new(radius), None::<Search>),
+            || (Search::new(radius, rule.volume), None::<Search>),
             |(steep, flat), task| {
                 let mut out = Channel::new();
                 for &(r, c) in task {
@@ -391,7 +410,7 @@ pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -
                     let search = if reach >= radius {
                         &mut *steep
                     } else {
-                        flat.get_or_insert_with(|| Search::new(reach))
+                        flat.get_or_insert_with(|| Search::new(reach, rule.volume))
                     };
                     search.channel(v, cols, (r, c), &mut out);
                 }
@@ -498,7 +517,8 @@ pub fn breach_pits_naive_with(
             };
             let is_goal = |a: (usize, usize)| z[a] < zq;
             let entry = |a: (usize, usize), step: f64| {
-                (f64::from(z[a]) - f64::from(zq)).max(0.0) + STEP_COST * step
+                let (per_m, length_cost) = step_weights(step, rule.volume);
+                (f64::from(z[a]) - f64::from(zq)).max(0.0) * per_m + length_cost
             };
             let mut dist = std::collections::BTreeMap::new();
             dist.insert(q, 0.0f64);

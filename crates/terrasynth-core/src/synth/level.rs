@@ -1000,6 +1000,7 @@ impl Amplifier {
                 radius: self.levers.breach as usize,
                 flat_radius: (self.levers.breach_flat.min(self.levers.breach)) as usize,
                 steep_rise: self.levers.steep_slope * RISE_REACH as f32 * parent_cell_m / 2.0,
+                volume: self.levers.breach_volume,
             };
             breach_pits_with(&raw, (ext.row0, ext.col0), rule)
         } else {

@@ -59,6 +59,10 @@ pub struct Levers {
     /// The reach of the channels of pits in flat terrain (below [`Levers::steep_slope`]), at most
     /// [`Levers::breach`]; 0 leaves them (basins of plains are real more often than not).
     pub breach_flat: u32,
+    /// Breaching channels cost the volume they carve (depth times step length), so a diagonal
+    /// step costs √2 times a straight one ([`BreachRule::volume`](crate::analysis::breach::BreachRule::volume));
+    /// off: the depth per cell alone, which favours diagonal channels.
+    pub breach_volume: bool,
     /// Slope (m/m) from a pit to the highest cell within
     /// [`RISE_REACH`](crate::analysis::breach::RISE_REACH) cells that makes the pit steep.
     pub steep_slope: f32,
@@ -100,7 +104,8 @@ impl Default for Levers {
     /// within 14 cells where the terrain rises at 5 % or more around them, within 2 cells on
     /// flats (longer reaches cost the upstream-area distribution: deep, narrow channels cut far
     /// through the detail steal the flow of the cells around them; on flats most closed
-    /// depressions are real); each primitive's atom picked among the 8 best matches by a hash
+    /// depressions are real), each channel costed by the volume it carves (so that channels do
+    /// not run along the diagonals); each primitive's atom picked among the 8 best matches by a hash
     /// of its lattice point.
     fn default() -> Self {
         Levers {
@@ -116,6 +121,7 @@ impl Default for Levers {
             passes: 2,
             breach: 14,
             breach_flat: 2,
+            breach_volume: true,
             steep_slope: 0.05,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
@@ -145,6 +151,7 @@ impl Levers {
             passes: 4,
             breach: 0,
             breach_flat: 0,
+            breach_volume: false,
             steep_slope: 0.0,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
@@ -157,7 +164,7 @@ impl Levers {
 
     /// Parses a comma-separated list of changes applied in order to [`Levers::default`]:
     /// `base` (start from [`Levers::baseline`]), `default`, `split`, `parent`, `slopemod`
-    /// (a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
+    /// `volume` (breaching costs by volume; a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
     /// pits), `floor=M`, `gentle=R` (roughness where the finest octave is gentle),
     /// `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `dsmooth=K` (detail
@@ -191,6 +198,7 @@ impl Levers {
                 "split" => l.consistent_split = on,
                 "parent" => l.parent_smooth = on,
                 "slopemod" => l.slope_mod = on,
+                "volume" => l.breach_volume = on,
                 "stripes" => {
                     l.stripe_cap = match value {
                         Some("off") => f32::INFINITY,
@@ -244,6 +252,9 @@ mod tests {
         assert_eq!((l.breach, l.blend_power, l.consistent_split), (4, 3, false));
         assert_eq!(l.passes, 4);
         assert_eq!(Levers::parse("octave=1.5").unwrap().octave_match, 1.5);
+        assert!(Levers::default().breach_volume);
+        assert!(!Levers::parse("no-volume").unwrap().breach_volume);
+        assert!(Levers::parse("base,volume").unwrap().breach_volume);
         assert!(Levers::parse("octave=5").is_err());
         assert_eq!(Levers::parse("stripes=0").unwrap().stripe_cap, 0.0);
         assert!(Levers::parse("stripes=off")

@@ -818,8 +818,9 @@ proptest! {
     #[test]
     fn breach_rule_matches_naive_and_is_window_invariant(
         rows in 14usize..30, cols in 14usize..30, radius in 2usize..5, flat in 0usize..3,
-        rise in 0.0f32..4.0, seed in any::<u64>(), r0 in 0usize..4, c0 in 0usize..4) {
-        let rule = BreachRule { radius, flat_radius: flat.min(radius), steep_rise: rise };
+        rise in 0.0f32..4.0, volume in any::<bool>(), seed in any::<u64>(), r0 in 0usize..4,
+        c0 in 0usize..4) {
+        let rule = BreachRule { radius, flat_radius: flat.min(radius), steep_rise: rise, volume };
         let z = rough_terrain(rows, cols, seed);
         let fast = breach_pits_with(&z, (3, -4), rule);
         let slow = breach_pits_naive_with(&z, (3, -4), rule);
@@ -872,6 +873,44 @@ proptest! {
     }
 }
 
+/// By volume, a channel costs the same per metre in every direction; by depth alone, a diagonal
+/// step carves √2 of channel for the price of one. A pit 10 m below a plateau with two lower
+/// cells: one 5 cells east (4 plateau cells to cut, 4 m of trench each 10 m deep), one 4 cells
+/// along the diagonal (3 plateau cells, 3√2 ≈ 4.24 m). By volume the nearer one, east, drains
+/// the pit; by depth alone the diagonal one.
+#[test]
+fn breach_by_volume_takes_the_shorter_channel_not_the_diagonal() {
+    let mut z = Array2::from_elem((40, 40), 100.0f32);
+    z[[20, 20]] = 90.0; // the pit
+    z[[20, 25]] = 80.0; // 5 cells east
+    z[[24, 24]] = 80.0; // 4 cells along the diagonal
+    let m = breach_margin(6);
+    let by = |volume| {
+        let rule = BreachRule {
+            volume,
+            ..BreachRule::uniform(6)
+        };
+        let fast = breach_pits_with(&z, (0, 0), rule);
+        let slow = breach_pits_naive_with(&z, (0, 0), rule);
+        assert!(fast
+            .iter()
+            .zip(slow.iter())
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        fast
+    };
+    let cut = |b: &Array2<f32>, cells: &[(usize, usize)]| {
+        cells.iter().all(|&(r, c)| b[[r - m, c - m]] < 100.0)
+    };
+    let east = [(20, 21), (20, 22), (20, 23), (20, 24)];
+    let diagonal = [(21, 21), (22, 22), (23, 23)];
+    let volume = by(true);
+    assert!(cut(&volume, &east) && !cut(&volume, &diagonal));
+    let depth = by(false);
+    assert!(cut(&depth, &diagonal) && !cut(&depth, &east));
+    // Either way the channel descends from the pit to its goal.
+    assert!(volume[[20 - m, 21 - m]] > volume[[20 - m, 24 - m]]);
+}
+
 #[test]
 fn breach_rule_leaves_flat_pits_and_cuts_steep_ones() {
     // Two pits 2 m deep below their 1-cell rims, both drainable within 3 cells: one on a plain
@@ -891,6 +930,7 @@ fn breach_rule_leaves_flat_pits_and_cuts_steep_ones() {
         radius: 8,
         flat_radius: 0,
         steep_rise: 20.0,
+        volume: true,
     };
     let m = breach_margin(8);
     let out = breach_pits_with(&z, (0, 0), rule);
