@@ -93,6 +93,12 @@ for label, vals, fmt in [("drainage density, km/km²", truth_dd, "{:.3f}"),
                          ("axis anisotropy", truth_an, "{:.2f}")]:
     cells = [fmt.format(v) for v in vals] + [fmt.format(sum(vals) / len(vals))]
     print(f"| {label} | truth | " + " | ".join(cells) + " |")
+octaves = reports[names[0]]["band_octaves"]
+for k, (lo, hi) in enumerate(octaves):
+    for w, wl in who:
+        vals = [reports[n][w]["band_octave_energy_ratios"][k] for n in names]
+        cells = ["{:.2f}".format(v) for v in vals] + ["{:.2f}".format(sum(vals) / len(vals))]
+        print(f"| band energy ratio, {lo:.3g}–{hi:.3g} cycles/cell | {wl} | " + " | ".join(cells) + " |")
 rmse_ratio = [reports[n]["amplified"]["rmse_m"] / reports[n]["bicubic"]["rmse_m"] for n in names]
 cells = ["{:.2f}".format(v) for v in rmse_ratio] + ["{:.2f}".format(sum(rmse_ratio) / len(rmse_ratio))]
 print("| RMSE / bicubic's | ours | " + " | ".join(cells) + " |")

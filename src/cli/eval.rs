@@ -38,6 +38,10 @@ pub struct Metrics {
     pub slope_wasserstein_deg: f64,
     /// Energy in the band the down-sampling removed, relative to the truth's (1 = same).
     pub band_energy_ratio: f64,
+    /// The same ratio in each octave of that band ([`EvalReport::band_octaves`], coarsest
+    /// first): where the band's energy sits, which the single ratio hides (0 where the truth has
+    /// none in an octave).
+    pub band_octave_energy_ratios: Vec<f64>,
     /// Flood extent, percent of cells.
     pub flood_extent_pct: f64,
     /// |flood extent − truth's flood extent|, percentage points.
@@ -63,6 +67,8 @@ pub struct TruthStats {
     pub flood_extent_pct: f64,
     /// Band energy of the truth.
     pub band_energy: f64,
+    /// The truth's energy in each octave of the band ([`EvalReport::band_octaves`]).
+    pub band_octave_energies: Vec<f64>,
     /// Relief (max − min) of the input, metres.
     pub input_relief_m: f64,
     /// Drainage density of the truth, km per km².
@@ -76,6 +82,10 @@ pub struct TruthStats {
 pub struct EvalReport {
     /// Up-sampling factor between input and truth.
     pub factor: usize,
+    /// The octaves of the band the down-sampling removed, `[low, high]` radial frequency in
+    /// cycles per cell of the truth: from the input's Nyquist (`0.5 / factor`) up, each twice the
+    /// last, the finest ending at 1 (past the spectrum's corners, `√2 / 2`).
+    pub band_octaves: Vec<[f64; 2]>,
     /// Truth reference values.
     pub truth: TruthStats,
     /// The amplified output.
@@ -96,6 +106,8 @@ struct Reference<'a> {
     log_area: Vec<f64>,
     flood: f64,
     band: f64,
+    octaves: Vec<[f64; 2]>,
+    octave_energies: Vec<f64>,
     curvature: Vec<f64>,
     drainage_density: f64,
     anisotropy: f64,
@@ -106,6 +118,28 @@ struct Reference<'a> {
 /// spectrum): the band that down-sampling by `factor` removed.
 fn band(z: &Array2<f32>, factor: usize) -> f64 {
     analysis::band_energy(z, 0.5 / factor as f64, 1.0)
+}
+
+/// The octaves of [`band`]: `[0.5/factor, 1/factor]`, `[1/factor, 2/factor]`, … up to the grid's
+/// Nyquist (0.5), then `[0.5, 1]` (the spectrum's corners). Together they cover the band once.
+fn band_octaves(factor: usize) -> Vec<[f64; 2]> {
+    let mut octaves = Vec::new();
+    let mut lo = 0.5 / factor as f64;
+    while lo < 0.5 {
+        let hi = (2.0 * lo).min(0.5);
+        octaves.push([lo, hi]);
+        lo = hi;
+    }
+    octaves.push([0.5, 1.0]);
+    octaves
+}
+
+/// Energy of `z` in each of `octaves`.
+fn octave_energies(z: &Array2<f32>, octaves: &[[f64; 2]]) -> Vec<f64> {
+    octaves
+        .iter()
+        .map(|&[lo, hi]| analysis::band_energy(z, lo, hi))
+        .collect()
 }
 
 fn slopes_deg(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
@@ -143,6 +177,11 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
         } else {
             0.0
         },
+        band_octave_energy_ratios: octave_energies(z, &reference.octaves)
+            .iter()
+            .zip(&reference.octave_energies)
+            .map(|(&e, &t)| if t > 0.0 { e / t } else { 0.0 })
+            .collect(),
         flood_extent_pct: flood,
         flood_extent_error_pct: (flood - reference.flood).abs(),
         log_area_wasserstein: analysis::wasserstein1(
@@ -207,6 +246,7 @@ pub fn evaluate_with_picture(
     let output_z = output.filled()?;
     let cells = truth.georef.cell_sizes(truth.rows());
     let input_relief = analysis::relief(&input_z);
+    let octaves = band_octaves(factor);
     let reference = Reference {
         cells: &cells,
         input: &input_z,
@@ -216,6 +256,8 @@ pub fn evaluate_with_picture(
         log_area: log_areas(&truth_z, &cells),
         flood: analysis::flood_extent(&truth_z),
         band: band(&truth_z, factor),
+        octave_energies: octave_energies(&truth_z, &octaves),
+        octaves,
         curvature: analysis::curvature_values(&truth_z, &cells),
         drainage_density: analysis::drainage_density(&truth_z, &cells, analysis::CHANNEL_AREA_M2),
         anisotropy: analysis::axis_anisotropy(&truth_z),
@@ -233,9 +275,11 @@ pub fn evaluate_with_picture(
     }
     Ok(EvalReport {
         factor,
+        band_octaves: reference.octaves.clone(),
         truth: TruthStats {
             flood_extent_pct: reference.flood,
             band_energy: reference.band,
+            band_octave_energies: reference.octave_energies.clone(),
             input_relief_m: input_relief,
             drainage_density_km_per_km2: reference.drainage_density,
             axis_anisotropy: reference.anisotropy,
@@ -320,4 +364,24 @@ pub fn picture_png(grids: &[&Array2<f32>], cells: &CellSizes) -> Result<Vec<u8>,
         x0 = x0.saturating_add(panel);
     }
     terrasynth_tiles::encode_gray_png(&img).map_err(|e| CliError::Usage(format!("picture: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::band_octaves;
+
+    #[test]
+    fn band_octaves_double_from_the_input_nyquist_to_the_corners() {
+        assert_eq!(
+            band_octaves(4),
+            vec![[0.125, 0.25], [0.25, 0.5], [0.5, 1.0]]
+        );
+        assert_eq!(band_octaves(2), vec![[0.25, 0.5], [0.5, 1.0]]);
+        // A factor that is not a power of two: the last octave below Nyquist is cut short.
+        let third = 0.5 / 3.0;
+        assert_eq!(
+            band_octaves(3),
+            vec![[third, 2.0 * third], [2.0 * third, 0.5], [0.5, 1.0]]
+        );
+    }
 }

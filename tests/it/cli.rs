@@ -620,6 +620,40 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
         m("amplified", "flood_extent_error_pct") < m("bicubic", "flood_extent_error_pct"),
         "{json}"
     );
+    // The band by octave: ×4 gives three (two below the grid's Nyquist, then the corners), whose
+    // ratios, weighted by the truth's energy in each, make up the band's ratio; bicubic's
+    // response falls octave by octave.
+    let octaves = v["band_octaves"].as_array().unwrap();
+    assert_eq!(octaves.len(), 3, "{json}");
+    let truth_e: Vec<f64> = v["truth"]["band_octave_energies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e.as_f64().unwrap())
+        .collect();
+    let ratios = |who: &str| -> Vec<f64> {
+        v[who]["band_octave_energy_ratios"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r.as_f64().unwrap())
+            .collect()
+    };
+    for who in ["amplified", "bicubic", "bicubic_fbm"] {
+        let r = ratios(who);
+        let weighted: f64 = r.iter().zip(&truth_e).map(|(r, e)| r * e).sum();
+        let whole = weighted / truth_e.iter().sum::<f64>();
+        let band = m(who, "band_energy_ratio");
+        assert!(
+            (whole - band).abs() <= 1e-9 * band,
+            "{who}: {whole} vs {band}"
+        );
+    }
+    let bicubic = ratios("bicubic");
+    assert!(
+        bicubic.windows(2).all(|w| w[1] < w[0]) && bicubic[1] < 0.05,
+        "{bicubic:?}"
+    );
     // No grid ribbing: at most 1.3 times the truth's own pixel-axis ratio. Below, the bound is
     // looser than acceptance 3's 1/1.25: each primitive's atom is drawn among its 8 best matches
     // (which removes the ribbing of served tiles), and the detail comes out near isotropic
