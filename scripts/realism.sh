@@ -99,6 +99,15 @@ for k, (lo, hi) in enumerate(octaves):
         vals = [reports[n][w]["band_octave_energy_ratios"][k] for n in names]
         cells = ["{:.2f}".format(v) for v in vals] + ["{:.2f}".format(sum(vals) / len(vals))]
         print(f"| band energy ratio, {lo:.3g}–{hi:.3g} cycles/cell | {wl} | " + " | ".join(cells) + " |")
+# The truth's spectral slope: the band's first octave over the octave below it (which the input
+# does not show), and that octave over the one below (which it does).
+for label, num, den in [("first band octave / octave below", ("band_octave_energies", 0),
+                         ("octave_below_band_energies", 1)),
+                        ("octave below / the one below that", ("octave_below_band_energies", 1),
+                         ("octave_below_band_energies", 0))]:
+    vals = [reports[n]["truth"][num[0]][num[1]] / reports[n]["truth"][den[0]][den[1]] for n in names]
+    cells = ["{:.2f}".format(v) for v in vals] + ["{:.2f}".format(sum(vals) / len(vals))]
+    print(f"| energy ratio, {label} | truth | " + " | ".join(cells) + " |")
 rmse_ratio = [reports[n]["amplified"]["rmse_m"] / reports[n]["bicubic"]["rmse_m"] for n in names]
 cells = ["{:.2f}".format(v) for v in rmse_ratio] + ["{:.2f}".format(sum(rmse_ratio) / len(rmse_ratio))]
 print("| RMSE / bicubic's | ours | " + " | ".join(cells) + " |")

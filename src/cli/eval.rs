@@ -69,6 +69,9 @@ pub struct TruthStats {
     pub band_energy: f64,
     /// The truth's energy in each octave of the band ([`EvalReport::band_octaves`]).
     pub band_octave_energies: Vec<f64>,
+    /// The truth's energy in each of [`EvalReport::octaves_below_band`]: the slope of its
+    /// spectrum where the input still shows it, to set against the band's first octave.
+    pub octave_below_band_energies: Vec<f64>,
     /// Relief (max − min) of the input, metres.
     pub input_relief_m: f64,
     /// Drainage density of the truth, km per km².
@@ -86,6 +89,9 @@ pub struct EvalReport {
     /// cycles per cell of the truth: from the input's Nyquist (`0.5 / factor`) up, each twice the
     /// last, the finest ending at 1 (past the spectrum's corners, `√2 / 2`).
     pub band_octaves: Vec<[f64; 2]>,
+    /// The two octaves just below the input's Nyquist, `[0.125/factor, 0.25/factor]` and
+    /// `[0.25/factor, 0.5/factor]`: frequencies the input still holds.
+    pub octaves_below_band: Vec<[f64; 2]>,
     /// Truth reference values.
     pub truth: TruthStats,
     /// The amplified output.
@@ -114,13 +120,8 @@ struct Reference<'a> {
     truth: &'a Array2<f32>,
 }
 
-/// Energy of every frequency above the coarse grid's Nyquist (radially, up to the corners of the
-/// spectrum): the band that down-sampling by `factor` removed.
-fn band(z: &Array2<f32>, factor: usize) -> f64 {
-    analysis::band_energy(z, 0.5 / factor as f64, 1.0)
-}
-
-/// The octaves of [`band`]: `[0.5/factor, 1/factor]`, `[1/factor, 2/factor]`, … up to the grid's
+/// The octaves of the band that down-sampling by `factor` removed (every frequency above the coarse
+/// grid's Nyquist, radially up to the corners of the spectrum): `[0.5/factor, 1/factor]`, `[1/factor, 2/factor]`, … up to the grid's
 /// Nyquist (0.5), then `[0.5, 1]` (the spectrum's corners). Together they cover the band once.
 fn band_octaves(factor: usize) -> Vec<[f64; 2]> {
     let mut octaves = Vec::new();
@@ -134,12 +135,25 @@ fn band_octaves(factor: usize) -> Vec<[f64; 2]> {
     octaves
 }
 
-/// Energy of `z` in each of `octaves`.
-fn octave_energies(z: &Array2<f32>, octaves: &[[f64; 2]]) -> Vec<f64> {
-    octaves
-        .iter()
-        .map(|&[lo, hi]| analysis::band_energy(z, lo, hi))
-        .collect()
+/// The two octaves just below the input's Nyquist (`0.5 / factor`), coarsest first.
+fn octaves_below_band(factor: usize) -> Vec<[f64; 2]> {
+    let nyquist = 0.5 / factor as f64;
+    vec![[nyquist / 4.0, nyquist / 2.0], [nyquist / 2.0, nyquist]]
+}
+
+/// Energy of `z` in the whole removed band `[0.5/factor, 1]` and in each of `octaves` (any radial
+/// bands), from one spectrum.
+fn band_and_octave_energies(
+    z: &Array2<f32>,
+    factor: usize,
+    octaves: &[[f64; 2]],
+) -> (f64, Vec<f64>) {
+    let bands: Vec<[f64; 2]> = std::iter::once([0.5 / factor as f64, 1.0])
+        .chain(octaves.iter().copied())
+        .collect();
+    let mut energies = analysis::band_energies(z, &bands);
+    let band = energies.remove(0);
+    (band, energies)
 }
 
 fn slopes_deg(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
@@ -160,6 +174,7 @@ fn log_areas(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
 fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
     let flood = analysis::flood_extent(z);
     let anisotropy = analysis::axis_anisotropy(z);
+    let (band, octave_energies) = band_and_octave_energies(z, reference.factor, &reference.octaves);
     let consistency = match analysis::box_down(z, reference.factor) {
         Ok(down) if reference.input_relief > 0.0 => {
             100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
@@ -173,11 +188,11 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
             &reference.slopes,
         ),
         band_energy_ratio: if reference.band > 0.0 {
-            band(z, reference.factor) / reference.band
+            band / reference.band
         } else {
             0.0
         },
-        band_octave_energy_ratios: octave_energies(z, &reference.octaves)
+        band_octave_energy_ratios: octave_energies
             .iter()
             .zip(&reference.octave_energies)
             .map(|(&e, &t)| if t > 0.0 { e / t } else { 0.0 })
@@ -247,6 +262,10 @@ pub fn evaluate_with_picture(
     let cells = truth.georef.cell_sizes(truth.rows());
     let input_relief = analysis::relief(&input_z);
     let octaves = band_octaves(factor);
+    let below = octaves_below_band(factor);
+    let (band, mut octave_energies) =
+        band_and_octave_energies(&truth_z, factor, &[octaves.as_slice(), &below].concat());
+    let below_energies = octave_energies.split_off(octaves.len());
     let reference = Reference {
         cells: &cells,
         input: &input_z,
@@ -255,8 +274,8 @@ pub fn evaluate_with_picture(
         slopes: slopes_deg(&truth_z, &cells),
         log_area: log_areas(&truth_z, &cells),
         flood: analysis::flood_extent(&truth_z),
-        band: band(&truth_z, factor),
-        octave_energies: octave_energies(&truth_z, &octaves),
+        band,
+        octave_energies,
         octaves,
         curvature: analysis::curvature_values(&truth_z, &cells),
         drainage_density: analysis::drainage_density(&truth_z, &cells, analysis::CHANNEL_AREA_M2),
@@ -276,10 +295,12 @@ pub fn evaluate_with_picture(
     Ok(EvalReport {
         factor,
         band_octaves: reference.octaves.clone(),
+        octaves_below_band: below,
         truth: TruthStats {
             flood_extent_pct: reference.flood,
             band_energy: reference.band,
             band_octave_energies: reference.octave_energies.clone(),
+            octave_below_band_energies: below_energies,
             input_relief_m: input_relief,
             drainage_density_km_per_km2: reference.drainage_density,
             axis_anisotropy: reference.anisotropy,
@@ -368,7 +389,16 @@ pub fn picture_png(grids: &[&Array2<f32>], cells: &CellSizes) -> Result<Vec<u8>,
 
 #[cfg(test)]
 mod tests {
-    use super::band_octaves;
+    use super::{band_octaves, octaves_below_band};
+
+    #[test]
+    fn the_octaves_below_the_band_end_at_the_input_nyquist() {
+        assert_eq!(
+            octaves_below_band(4),
+            vec![[0.03125, 0.0625], [0.0625, 0.125]]
+        );
+        assert_eq!(octaves_below_band(2), vec![[0.0625, 0.125], [0.125, 0.25]]);
+    }
 
     #[test]
     fn band_octaves_double_from_the_input_nyquist_to_the_corners() {

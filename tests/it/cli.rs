@@ -649,6 +649,22 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
             "{who}: {whole} vs {band}"
         );
     }
+    // The two octaves below the band end where it starts, and real terrain's spectrum falls
+    // through them into the band.
+    let below = v["octaves_below_band"].as_array().unwrap();
+    assert_eq!(below.len(), 2, "{json}");
+    assert_eq!(below[1][1], octaves[0][0], "{json}");
+    assert_eq!(below[0][1], below[1][0], "{json}");
+    let below_e: Vec<f64> = v["truth"]["octave_below_band_energies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e.as_f64().unwrap())
+        .collect();
+    assert!(
+        below_e[0] > below_e[1] && below_e[1] > truth_e[0] && truth_e[0] > 0.0,
+        "{json}"
+    );
     let bicubic = ratios("bicubic");
     assert!(
         bicubic.windows(2).all(|w| w[1] < w[0]) && bicubic[1] < 0.05,

@@ -52,7 +52,7 @@ pub use metrics::{box_down, relief, rmse, wasserstein1};
 pub use realism::{
     axis_anisotropy, curvature_values, drainage_density, ANISOTROPY_WEDGE_DEG, CHANNEL_AREA_M2,
 };
-pub use spectrum::band_energy;
+pub use spectrum::{band_energies, band_energy};
 
 /// An error of an analysis function with preconditions on its arguments.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]
