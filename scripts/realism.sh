@@ -71,6 +71,8 @@ rows = [
     ("drainage density, km/km²", "drainage_density_km_per_km2", "{:.3f}"),
     ("RMSE, m", "rmse_m", "{:.1f}"),
     ("consistency, % relief", "consistency_pct", "{:.3f}"),
+    ("detail correlation with the truth's (from bicubic)", "detail_correlation", "{:.3f}"),
+    ("detail RMS / the truth's (from bicubic)", "detail_rms_ratio", "{:.3f}"),
 ]
 scale = {"curvature_wasserstein_per_m": 1e4}
 who = [("amplified", "ours"), ("bicubic", "bicubic"), ("bicubic_fbm", "bicubic+fBm")]

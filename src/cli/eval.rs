@@ -58,6 +58,13 @@ pub struct Metrics {
     pub axis_anisotropy: f64,
     /// [`Metrics::axis_anisotropy`] divided by the truth's (1 = the truth's own).
     pub anisotropy_vs_truth: f64,
+    /// The candidate's detail against the truth's, both measured from the bicubic baseline
+    /// (`candidate − bicubic`, `truth − bicubic`): their correlation `ρ` (the cosine of the two
+    /// grids as vectors; 0 when the candidate has no detail, as bicubic itself).
+    pub detail_correlation: f64,
+    /// The RMS of the candidate's detail over the truth's, `r`. With `ρ`, the RMSE follows:
+    /// `(RMSE / bicubic's)² = 1 + r² − 2ρr`.
+    pub detail_rms_ratio: f64,
 }
 
 /// The truth's own reference values.
@@ -118,6 +125,8 @@ struct Reference<'a> {
     drainage_density: f64,
     anisotropy: f64,
     truth: &'a Array2<f32>,
+    /// The bicubic baseline, from which the candidates' and the truth's details are measured.
+    bicubic: &'a Array2<f32>,
 }
 
 /// The octaves of the band that down-sampling by `factor` removed (every frequency above the coarse
@@ -175,6 +184,7 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
     let flood = analysis::flood_extent(z);
     let anisotropy = analysis::axis_anisotropy(z);
     let (band, octave_energies) = band_and_octave_energies(z, reference.factor, &reference.octaves);
+    let (correlation, rms_ratio) = detail_against_truth(z, reference.truth, reference.bicubic);
     let consistency = match analysis::box_down(z, reference.factor) {
         Ok(down) if reference.input_relief > 0.0 => {
             100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
@@ -215,7 +225,28 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
         ),
         axis_anisotropy: anisotropy,
         anisotropy_vs_truth: anisotropy / reference.anisotropy,
+        detail_correlation: correlation,
+        detail_rms_ratio: rms_ratio,
     }
+}
+
+/// `(ρ, r)` of [`Metrics::detail_correlation`] and [`Metrics::detail_rms_ratio`] for candidate
+/// `z` against `truth`, both measured from `bicubic` (all the same shape).
+fn detail_against_truth(z: &Array2<f32>, truth: &Array2<f32>, bicubic: &Array2<f32>) -> (f64, f64) {
+    let (mut zt, mut zz, mut tt) = (0.0f64, 0.0f64, 0.0f64);
+    for ((&v, &t), &b) in z.iter().zip(truth).zip(bicubic) {
+        let (dz, dt) = (f64::from(v) - f64::from(b), f64::from(t) - f64::from(b));
+        zt += dz * dt;
+        zz += dz * dz;
+        tt += dt * dt;
+    }
+    let correlation = if zz > 0.0 && tt > 0.0 {
+        zt / (zz * tt).sqrt()
+    } else {
+        0.0
+    };
+    let rms_ratio = if tt > 0.0 { (zz / tt).sqrt() } else { 0.0 };
+    (correlation, rms_ratio)
 }
 
 /// Evaluates `output` (and the baselines computed from `input`) against `truth`. The three grids
@@ -261,6 +292,7 @@ pub fn evaluate_with_picture(
     let output_z = output.filled()?;
     let cells = truth.georef.cell_sizes(truth.rows());
     let input_relief = analysis::relief(&input_z);
+    let bicubic = bicubic_upsample(&input_z, factor);
     let octaves = band_octaves(factor);
     let below = octaves_below_band(factor);
     let (band, mut octave_energies) =
@@ -281,9 +313,9 @@ pub fn evaluate_with_picture(
         drainage_density: analysis::drainage_density(&truth_z, &cells, analysis::CHANNEL_AREA_M2),
         anisotropy: analysis::axis_anisotropy(&truth_z),
         truth: &truth_z,
+        bicubic: &bicubic,
     };
     let coarse_cell = input.georef.cell_sizes(input.rows()).mean_cell();
-    let bicubic = bicubic_upsample(&input_z, factor);
     let fbm = fbm_upsample(&input_z, factor, coarse_cell, FBM_SEED);
     if let Some(path) = picture {
         let bytes = picture_png(&[&truth_z, &bicubic, &fbm, &output_z], &cells)?;

@@ -625,20 +625,15 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
     // response falls octave by octave.
     let octaves = v["band_octaves"].as_array().unwrap();
     assert_eq!(octaves.len(), 3, "{json}");
-    let truth_e: Vec<f64> = v["truth"]["band_octave_energies"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e.as_f64().unwrap())
-        .collect();
-    let ratios = |who: &str| -> Vec<f64> {
-        v[who]["band_octave_energy_ratios"]
-            .as_array()
+    let floats = |a: &serde_json::Value| -> Vec<f64> {
+        a.as_array()
             .unwrap()
             .iter()
-            .map(|r| r.as_f64().unwrap())
+            .map(|e| e.as_f64().unwrap())
             .collect()
     };
+    let truth_e = floats(&v["truth"]["band_octave_energies"]);
+    let ratios = |who: &str| floats(&v[who]["band_octave_energy_ratios"]);
     for who in ["amplified", "bicubic", "bicubic_fbm"] {
         let r = ratios(who);
         let weighted: f64 = r.iter().zip(&truth_e).map(|(r, e)| r * e).sum();
@@ -655,14 +650,26 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
     assert_eq!(below.len(), 2, "{json}");
     assert_eq!(below[1][1], octaves[0][0], "{json}");
     assert_eq!(below[0][1], below[1][0], "{json}");
-    let below_e: Vec<f64> = v["truth"]["octave_below_band_energies"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e.as_f64().unwrap())
-        .collect();
+    let below_e = floats(&v["truth"]["octave_below_band_energies"]);
     assert!(
         below_e[0] > below_e[1] && below_e[1] > truth_e[0] && truth_e[0] > 0.0,
+        "{json}"
+    );
+    // The detail against the truth's, both from the bicubic surface: the RMSE follows from
+    // them exactly, bicubic has none, the output's correlates with the truth's and fBm's not.
+    for who in ["amplified", "bicubic", "bicubic_fbm"] {
+        let (rho, r) = (m(who, "detail_correlation"), m(who, "detail_rms_ratio"));
+        let from_detail = (1.0 + r * r - 2.0 * rho * r).sqrt();
+        let ratio = m(who, "rmse_m") / m("bicubic", "rmse_m");
+        assert!(
+            (from_detail - ratio).abs() < 1e-6,
+            "{who}: {from_detail} vs {ratio}"
+        );
+    }
+    assert_eq!(m("bicubic", "detail_rms_ratio"), 0.0, "{json}");
+    assert!(m("amplified", "detail_correlation") > 0.1, "{json}");
+    assert!(
+        m("bicubic_fbm", "detail_correlation").abs() < 0.05,
         "{json}"
     );
     let bicubic = ratios("bicubic");

@@ -6,6 +6,7 @@
 //! deterministic: single-threaded, fixed summation orders, no global state. Empty, tiny (< 3×3)
 //! and NaN-containing grids never panic.
 //!
+//! - [`banks`]: V-shaped banks beside breached channels (an ablation lever; window-invariant).
 //! - [`breach`]: bounded, order-independent pit breaching (window-invariant).
 //! - [`contour`]: contour lines by marching squares (window-invariant crossings), joined.
 //! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
@@ -20,6 +21,7 @@
 //!   agreement with D8 drainage; [`ppa_naive`]: its references.
 //! - [`naive`]: slow reference implementations for tests.
 
+pub mod banks;
 pub mod breach;
 mod common;
 pub mod contour;

@@ -26,7 +26,7 @@
 
 use std::sync::Arc;
 
-use ndarray::Array2;
+use ndarray::{s, Array2};
 use rayon::prelude::*;
 
 use super::error::SynthError;
@@ -37,6 +37,7 @@ use super::kernel::{
     OctaveScratch, UpKernel, CATMULL_ROM,
 };
 pub use super::levers::{Levers, MAX_AMPLIFY_SPARSITY};
+use crate::analysis::banks::widen_channels;
 use crate::analysis::breach::{breach_margin, breach_pits_with, BreachRule, RISE_REACH};
 use crate::dictionary::features::{centre_normalise_n, patch_mean_slope_n};
 use crate::dictionary::matching::{
@@ -508,10 +509,11 @@ impl Amplifier {
     }
 
     /// The window whose raw elevation the breaching of `out` reads: `out` widened by
-    /// [`breach_margin`] (the reach of a channel, and of the search that finds it).
+    /// [`breach_margin`] (the reach of a channel, and of the search that finds it), plus one
+    /// cell per ring of [`Levers::banks`].
     fn conditioned_window(&self, out: Window) -> Window {
         let m = if self.levers.breach > 0 {
-            breach_margin(self.levers.breach as usize) as i64
+            (breach_margin(self.levers.breach as usize) + self.levers.banks as usize) as i64
         } else {
             0
         };
@@ -578,9 +580,10 @@ impl Amplifier {
                     std::array::from_fn::<_, DOT_BATCH, _>(|_| Query::default()),
                     OctaveScratch::default(),
                     Vec::<Ranked>::new(),
+                    Vec::<f32>::new(),
                 )
             },
-            |(scratches, omp_scratch, raws, queries, octave, ranked), (g, group)| {
+            |(scratches, omp_scratch, raws, queries, octave, ranked, mean_detail), (g, group)| {
                 let point = |m: usize| {
                     let n = g * DOT_BATCH + m;
                     (lr.i0 + (n % ni) as i64, lr.j0 + (n / ni) as i64)
@@ -677,7 +680,9 @@ impl Amplifier {
                         extra: [(0, 0.0, 0.0); MAX_AMPLIFY_SPARSITY - 1],
                         n_extra: 0,
                     };
-                    if let Some(omp) = &self.omp {
+                    if self.levers.mean_k > 1 {
+                        self.mean_of_best_details(prim, atom, query, scratch, ranked, mean_detail);
+                    } else if let Some(omp) = &self.omp {
                         // The matcher's atom first, then the pursuit; least-squares
                         // coefficients of the low patch for all of them. Each further atom's
                         // detail comes in the proportion of its coefficient.
@@ -695,6 +700,57 @@ impl Amplifier {
             },
         );
         prims
+    }
+
+    /// [`Levers::mean_k`]: sets `prim`'s detail to the mean of the unit-RMS details of its own
+    /// `atom` and the next best matches of `query` (as further atoms with no smooth part),
+    /// rescaled to the RMS its own atom's detail had. Leaves `prim` as it is when it has no
+    /// detail or the mean is flat. `sum` is scratch.
+    fn mean_of_best_details(
+        &self,
+        prim: &mut Primitive,
+        atom: usize,
+        query: &Query,
+        scratch: &mut MatchScratch,
+        ranked: &mut Vec<Ranked>,
+        sum: &mut Vec<f32>,
+    ) {
+        let own_rms = self.detail_rms[atom];
+        if prim.detail_coef <= 0.0 || own_rms <= 0.0 {
+            return;
+        }
+        let k = (self.levers.mean_k as usize).min(MAX_AMPLIFY_SPARSITY);
+        self.matcher.best_k_prepared(query, scratch, k, ranked);
+        let mut members = [(0usize, 0.0f32); MAX_AMPLIFY_SPARSITY];
+        members[0] = (atom, 1.0 / own_rms);
+        let mut n = 1;
+        for r in ranked.iter().filter(|r| r.atom != atom) {
+            let rms = self.detail_rms[r.atom];
+            if n < k && rms > 0.0 {
+                members[n] = (r.atom, 1.0 / rms);
+                n += 1;
+            }
+        }
+        let p2 = self.patch * self.patch;
+        sum.clear();
+        sum.resize(p2, 0.0);
+        for &(a, w) in &members[..n] {
+            for (s, &d) in sum.iter_mut().zip(&self.detail[a * p2..(a + 1) * p2]) {
+                *s += w * d;
+            }
+        }
+        let ss: f64 = sum.iter().map(|&v| f64::from(v) * f64::from(v)).sum();
+        let rms = (ss / p2.max(1) as f64).sqrt() as f32;
+        if rms <= 0.0 {
+            return;
+        }
+        let scale = prim.detail_coef * own_rms / rms;
+        prim.detail_coef = scale * members[0].1;
+        prim.n_extra = 0;
+        for (slot, &(a, w)) in prim.extra.iter_mut().zip(&members[1..n]) {
+            *slot = (a as u32, 0.0, scale * w);
+            prim.n_extra += 1;
+        }
     }
 
     /// Blends the primitives over window `bw`, adding contributions in lattice order. For
@@ -1002,7 +1058,21 @@ impl Amplifier {
                 steep_rise: self.levers.steep_slope * RISE_REACH as f32 * parent_cell_m / 2.0,
                 volume: self.levers.breach_volume,
             };
-            breach_pits_with(&raw, (ext.row0, ext.col0), rule)
+            let carved = breach_pits_with(&raw, (ext.row0, ext.col0), rule);
+            if self.levers.banks > 0 {
+                // The raw values of the breaching's result, for the banks.
+                let m = breach_margin(rule.radius);
+                let (rr, rc) = raw.dim();
+                let raw_inner = raw.slice(s![m..rr - m, m..rc - m]).to_owned();
+                widen_channels(
+                    &raw_inner,
+                    &carved,
+                    self.levers.banks as usize,
+                    self.levers.bank_share,
+                )
+            } else {
+                carved
+            }
         } else {
             raw
         };

@@ -63,6 +63,12 @@ pub struct Levers {
     /// step costs √2 times a straight one ([`BreachRule::volume`](crate::analysis::breach::BreachRule::volume));
     /// off: the depth per cell alone, which favours diagonal channels.
     pub breach_volume: bool,
+    /// Rings of V-shaped banks beside every breached channel
+    /// ([`widen_channels`](crate::analysis::banks::widen_channels)): ring `k` is lowered by
+    /// [`Levers::bank_share`]`^k` of the trench's depth. 0: none (the one-cell trench).
+    pub banks: u32,
+    /// The share of a neighbour's carve depth a bank is lowered by.
+    pub bank_share: f32,
     /// Slope (m/m) from a pit to the highest cell within
     /// [`RISE_REACH`](crate::analysis::breach::RISE_REACH) cells that makes the pit steep.
     pub steep_slope: f32,
@@ -95,6 +101,12 @@ pub struct Levers {
     /// Score tolerance of [`Levers::diversity`]: only atoms whose full score is at least the
     /// best's minus this are candidates.
     pub diversity_tol: f32,
+    /// When above 1, each primitive's detail is the mean of the details of its `mean_k` best
+    /// matches (its own atom first, each at unit RMS; at most [`MAX_AMPLIFY_SPARSITY`]), rescaled
+    /// to the RMS its own atom's detail would have had: the candidates' shared shape stays, what
+    /// only one of them has averages out. The smooth part stays its own atom's. Replaces the
+    /// sparse code's further atoms. 0 or 1: off.
+    pub mean_k: u32,
 }
 
 impl Default for Levers {
@@ -122,6 +134,8 @@ impl Default for Levers {
             breach: 14,
             breach_flat: 2,
             breach_volume: true,
+            banks: 0,
+            bank_share: 0.5,
             steep_slope: 0.05,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
@@ -129,6 +143,7 @@ impl Default for Levers {
             sparsity: 0,
             diversity: 8,
             diversity_tol: f32::INFINITY,
+            mean_k: 0,
         }
     }
 }
@@ -152,6 +167,8 @@ impl Levers {
             breach: 0,
             breach_flat: 0,
             breach_volume: false,
+            banks: 0,
+            bank_share: 0.5,
             steep_slope: 0.0,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
@@ -159,6 +176,7 @@ impl Levers {
             sparsity: 0,
             diversity: 1,
             diversity_tol: f32::INFINITY,
+            mean_k: 0,
         }
     }
 
@@ -169,7 +187,9 @@ impl Levers {
     /// pits), `floor=M`, `gentle=R` (roughness where the finest octave is gentle),
     /// `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `dsmooth=K` (detail
     /// low-pass), `sparsity=S` (0: the dictionary's), `diverse=K` (atoms a primitive chooses
-    /// among), `within=T` (their score tolerance).
+    /// among), `within=T` (their score tolerance), `banks=N` (rings of banks beside breached
+    /// channels), `share=F` (their share of the depth), `meank=K` (detail as the mean of the `K`
+    /// best matches').
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -217,6 +237,9 @@ impl Levers {
                     l.breach = num(0.0, 32.0)? as u32;
                     l.breach_flat = l.breach_flat.min(l.breach);
                 }
+                "meank" => l.mean_k = num(0.0, MAX_AMPLIFY_SPARSITY as f64)? as u32,
+                "banks" => l.banks = num(0.0, 8.0)? as u32,
+                "share" => l.bank_share = num(0.0, 1.0)? as f32,
                 "flat" => l.breach_flat = num(0.0, 32.0)? as u32,
                 "steep" => l.steep_slope = num(0.0, 10.0)? as f32,
                 "diverse" => l.diversity = num(1.0, 64.0)? as u32,
@@ -270,6 +293,16 @@ mod tests {
         assert!(Levers::parse("kernel=lanczos").is_err());
         assert!(Levers::parse("warp").is_err());
         assert_eq!(Levers::parse("sparsity=3").unwrap().sparsity, 3);
+        let banked = Levers::parse("banks=2,share=0.25,meank=4").unwrap();
+        assert_eq!(
+            (banked.banks, banked.bank_share, banked.mean_k),
+            (2, 0.25, 4)
+        );
+        assert!(Levers::parse("banks=9").is_err());
+        assert!(Levers::parse("share=1.5").is_err());
+        assert!(Levers::parse("meank=9").is_err());
+        assert_eq!(Levers::default().banks, 0);
+        assert_eq!(Levers::default().mean_k, 0);
         assert!(Levers::parse("sparsity=9").is_err());
         let l = Levers::parse("gentle=0.7,gentleslope=0.03").unwrap();
         assert_eq!((l.gentle_roughness, l.gentle_slope), (0.7, 0.03));

@@ -776,6 +776,7 @@ fn drainage_density_of_an_eastward_plane() {
 // Bounded pit breaching
 // ---------------------------------------------------------------------------------------------
 
+use terrasynth_core::analysis::banks::widen_channels;
 use terrasynth_core::analysis::breach::{
     breach_margin, breach_pits, breach_pits_naive, breach_pits_naive_with, breach_pits_with,
     BreachRule,
@@ -869,6 +870,51 @@ proptest! {
                     prop_assert!(is_pit_in(&inner, (m as i64, m as i64), r, c), "new pit at ({}, {})", r, c);
                 }
             }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, .. ProptestConfig::default() })]
+
+    /// Banks beside breached channels (`analysis::banks`): they only lower cells the breaching
+    /// left, create no pit, keep the trench, and a sub-window gives the same values as the whole.
+    #[test]
+    fn banks_lower_create_no_pit_and_are_window_invariant(seed in any::<u64>(), rings in 1usize..4,
+            share in 0.1f32..1.0, r0 in 0usize..8, c0 in 0usize..8, h in 12usize..30, w in 12usize..30) {
+        let z = rough_terrain(44, 44, seed);
+        let m = breach_margin(3);
+        let carved = breach_pits(&z, (0, 0), 3);
+        let raw = z.slice(ndarray::s![m..44 - m, m..44 - m]).to_owned();
+        let banked = widen_channels(&raw, &carved, rings, share);
+        let n = carved.nrows() - 2 * rings;
+        prop_assert_eq!(banked.dim(), (n, n));
+        let inner = |a: &Array2<f32>| a.slice(ndarray::s![rings..rings + n, rings..rings + n]).to_owned();
+        let (raw_i, carved_i) = (inner(&raw), inner(&carved));
+        let mut lowered = 0;
+        for ((rc, &b), (&c, &r)) in banked.indexed_iter().zip(carved_i.iter().zip(raw_i.iter())) {
+            prop_assert!(b <= c, "{:?} rises", rc);
+            if c < r {
+                prop_assert_eq!(b.to_bits(), c.to_bits(), "trench {:?} moved", rc);
+            }
+            lowered += usize::from(b < c);
+        }
+        let origin = ((m + rings) as i64, (m + rings) as i64);
+        for r in 1..n - 1 {
+            for c in 1..n - 1 {
+                if is_pit_in(&banked, origin, r, c) {
+                    prop_assert!(is_pit_in(&carved_i, origin, r, c), "new pit at ({}, {})", r, c);
+                }
+            }
+        }
+        // Rough terrain has pits to breach, so some banks appear.
+        prop_assert!(lowered > 0);
+        let (h, w) = (h.min(raw.nrows() - r0), w.min(raw.ncols() - c0));
+        prop_assume!(h > 2 * rings && w > 2 * rings);
+        let cut = |a: &Array2<f32>| a.slice(ndarray::s![r0..r0 + h, c0..c0 + w]).to_owned();
+        let part = widen_channels(&cut(&raw), &cut(&carved), rings, share);
+        for ((r, c), v) in part.indexed_iter() {
+            prop_assert_eq!(v.to_bits(), banked[[r + r0, c + c0]].to_bits(), "({}, {})", r, c);
         }
     }
 }

@@ -116,6 +116,14 @@ fn lever_sets() -> Vec<Levers> {
             sparsity: 4,
             ..Levers::default()
         },
+        Levers {
+            banks: 2,
+            ..Levers::default()
+        },
+        Levers {
+            mean_k: 3,
+            ..Levers::default()
+        },
     ]
 }
 
@@ -123,7 +131,7 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 20, .. ProptestConfig::default() })]
 
     #[test]
-    fn every_lever_set_is_window_invariant(which in 0usize..12, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
+    fn every_lever_set_is_window_invariant(which in 0usize..14, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
         let levers = lever_sets()[which];
         let dict = small_dictionary(3);
         let base = synthetic_terrain(72, 72, 5);
