@@ -101,6 +101,10 @@ for k, (lo, hi) in enumerate(octaves):
         vals = [reports[n][w]["band_octave_energy_ratios"][k] for n in names]
         cells = ["{:.2f}".format(v) for v in vals] + ["{:.2f}".format(sum(vals) / len(vals))]
         print(f"| band energy ratio, {lo:.3g}–{hi:.3g} cycles/cell | {wl} | " + " | ".join(cells) + " |")
+for k, (lo, hi) in enumerate(reports[names[0]]["detail_octaves"]):
+    vals = [reports[n]["amplified"]["detail_octave_correlations"][k] for n in names]
+    cells = ["{:.3f}".format(v) for v in vals] + ["{:.3f}".format(sum(vals) / len(vals))]
+    print(f"| detail correlation with the truth's, {lo:.3g}–{hi:.3g} cycles/cell | ours | " + " | ".join(cells) + " |")
 # The truth's spectral slope: the band's first octave over the octave below it (which the input
 # does not show), and that octave over the one below (which it does).
 for label, num, den in [("first band octave / octave below", ("band_octave_energies", 0),

@@ -65,6 +65,9 @@ pub struct Metrics {
     /// The RMS of the candidate's detail over the truth's, `r`. With `ρ`, the RMSE follows:
     /// `(RMSE / bicubic's)² = 1 + r² − 2ρr`.
     pub detail_rms_ratio: f64,
+    /// [`Metrics::detail_correlation`] in each of [`EvalReport::detail_octaves`]: where in the
+    /// spectrum the candidate's detail agrees with the truth's.
+    pub detail_octave_correlations: Vec<f64>,
 }
 
 /// The truth's own reference values.
@@ -99,6 +102,9 @@ pub struct EvalReport {
     /// The two octaves just below the input's Nyquist, `[0.125/factor, 0.25/factor]` and
     /// `[0.25/factor, 0.5/factor]`: frequencies the input still holds.
     pub octaves_below_band: Vec<[f64; 2]>,
+    /// The octaves of [`Metrics::detail_octave_correlations`]: [`EvalReport::octaves_below_band`]
+    /// then [`EvalReport::band_octaves`].
+    pub detail_octaves: Vec<[f64; 2]>,
     /// Truth reference values.
     pub truth: TruthStats,
     /// The amplified output.
@@ -127,6 +133,10 @@ struct Reference<'a> {
     truth: &'a Array2<f32>,
     /// The bicubic baseline, from which the candidates' and the truth's details are measured.
     bicubic: &'a Array2<f32>,
+    /// `truth − bicubic`.
+    truth_detail: Array2<f32>,
+    /// The bands of [`Metrics::detail_octave_correlations`].
+    detail_octaves: Vec<[f64; 2]>,
 }
 
 /// The octaves of the band that down-sampling by `factor` removed (every frequency above the coarse
@@ -185,6 +195,11 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
     let anisotropy = analysis::axis_anisotropy(z);
     let (band, octave_energies) = band_and_octave_energies(z, reference.factor, &reference.octaves);
     let (correlation, rms_ratio) = detail_against_truth(z, reference.truth, reference.bicubic);
+    let detail_octave_correlations = analysis::band_correlations(
+        &difference(z, reference.bicubic),
+        &reference.truth_detail,
+        &reference.detail_octaves,
+    );
     let consistency = match analysis::box_down(z, reference.factor) {
         Ok(down) if reference.input_relief > 0.0 => {
             100.0 * analysis::rmse(&down, reference.input) / reference.input_relief
@@ -227,7 +242,13 @@ fn metrics(reference: &Reference<'_>, z: &Array2<f32>) -> Metrics {
         anisotropy_vs_truth: anisotropy / reference.anisotropy,
         detail_correlation: correlation,
         detail_rms_ratio: rms_ratio,
+        detail_octave_correlations,
     }
+}
+
+/// `a − b` cell by cell (same shapes: the evaluated grids are checked to match).
+fn difference(a: &Array2<f32>, b: &Array2<f32>) -> Array2<f32> {
+    ndarray::Zip::from(a).and(b).map_collect(|&x, &y| x - y)
 }
 
 /// `(ρ, r)` of [`Metrics::detail_correlation`] and [`Metrics::detail_rms_ratio`] for candidate
@@ -298,6 +319,7 @@ pub fn evaluate_with_picture(
     let (band, mut octave_energies) =
         band_and_octave_energies(&truth_z, factor, &[octaves.as_slice(), &below].concat());
     let below_energies = octave_energies.split_off(octaves.len());
+    let detail_octaves = [below.as_slice(), &octaves].concat();
     let reference = Reference {
         cells: &cells,
         input: &input_z,
@@ -314,6 +336,8 @@ pub fn evaluate_with_picture(
         anisotropy: analysis::axis_anisotropy(&truth_z),
         truth: &truth_z,
         bicubic: &bicubic,
+        truth_detail: difference(&truth_z, &bicubic),
+        detail_octaves,
     };
     let coarse_cell = input.georef.cell_sizes(input.rows()).mean_cell();
     let fbm = fbm_upsample(&input_z, factor, coarse_cell, FBM_SEED);
@@ -328,6 +352,7 @@ pub fn evaluate_with_picture(
         factor,
         band_octaves: reference.octaves.clone(),
         octaves_below_band: below,
+        detail_octaves: reference.detail_octaves.clone(),
         truth: TruthStats {
             flood_extent_pct: reference.flood,
             band_energy: reference.band,

@@ -667,6 +667,19 @@ fn amplifier_beats_baselines_on_held_out_tien_shan() {
         );
     }
     assert_eq!(m("bicubic", "detail_rms_ratio"), 0.0, "{json}");
+    // By octave: the two below the band, then the band's; the output's detail follows the
+    // truth's below the input's Nyquist (its reconstruction) and far less above it.
+    let detail_octaves = v["detail_octaves"].as_array().unwrap();
+    assert_eq!(detail_octaves.len(), below.len() + octaves.len(), "{json}");
+    assert_eq!(detail_octaves[2], octaves[0], "{json}");
+    let by_octave = floats(&v["amplified"]["detail_octave_correlations"]);
+    assert!(
+        by_octave[1] > 0.4 && by_octave[2] < 0.5 * by_octave[1],
+        "{by_octave:?}"
+    );
+    assert!(floats(&v["bicubic"]["detail_octave_correlations"])
+        .iter()
+        .all(|&c| c == 0.0));
     assert!(m("amplified", "detail_correlation") > 0.1, "{json}");
     assert!(
         m("bicubic_fbm", "detail_correlation").abs() < 0.05,

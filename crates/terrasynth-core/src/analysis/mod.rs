@@ -15,7 +15,7 @@
 //! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
 //! - [`fft`](mod@fft): the radix-2 / Bluestein FFT (1D, 2D) and its naive DFT.
-//! - [`spectrum`]: radial band energy.
+//! - [`spectrum`]: radial band energy, and the correlation of two grids by band.
 //! - [`realism`]: pixel-axis anisotropy of the spectrum, drainage density, curvature values.
 //! - [`ppa`]: ridges and valleys (Profile-recognition and Polygon-breaking Algorithm), and their
 //!   agreement with D8 drainage; [`ppa_naive`]: its references.
@@ -54,7 +54,7 @@ pub use metrics::{box_down, relief, rmse, wasserstein1};
 pub use realism::{
     axis_anisotropy, curvature_values, drainage_density, ANISOTROPY_WEDGE_DEG, CHANNEL_AREA_M2,
 };
-pub use spectrum::{band_energies, band_energy};
+pub use spectrum::{band_correlations, band_energies, band_energy};
 
 /// An error of an analysis function with preconditions on its arguments.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]

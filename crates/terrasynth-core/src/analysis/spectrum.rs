@@ -37,19 +37,11 @@ pub fn band_energy(z: &Array2<f32>, f_lo: f64, f_hi: f64) -> f64 {
 /// overlap.
 pub fn band_energies(z: &Array2<f32>, bands: &[[f64; 2]]) -> Vec<f64> {
     let mut energies = vec![0.0; bands.len()];
-    let (rows, cols) = z.dim();
-    if rows == 0 || cols == 0 {
+    let Some(f) = windowed_spectrum(z) else {
         return energies;
-    }
-    let mean = z.iter().map(|&v| v as f64).sum::<f64>() / z.len() as f64;
-    let (wr, wc) = (hann(rows), hann(cols));
-    let mut f = Array2::from_shape_fn((rows, cols), |(r, c)| {
-        Complex::new((z[[r, c]] as f64 - mean) * wr[r] * wc[c], 0.0)
-    });
-    fft2(&mut f, false);
+    };
     for ((r, c), v) in f.indexed_iter() {
-        let (fy, fx) = (bin_freq(r, rows), bin_freq(c, cols));
-        let fr = (fx * fx + fy * fy).sqrt();
+        let fr = radial_freq(r, c, f.dim());
         for (e, &[f_lo, f_hi]) in energies.iter_mut().zip(bands) {
             if fr >= f_lo && fr < f_hi {
                 *e += v.norm_sqr();
@@ -59,21 +51,70 @@ pub fn band_energies(z: &Array2<f32>, bands: &[[f64; 2]]) -> Vec<f64> {
     energies
 }
 
+/// The correlation of `a` and `b` (same shape) in each radial band of `bands`, from their
+/// spectra as [`band_energy`] takes them (mean removed, Hann window): `Σ Re(A·B̄) / √(Σ|A|²·Σ|B|²)`
+/// over the band's bins, in `[−1, 1]`; 0 where either has no energy in the band, and for every
+/// band when the shapes differ or the grids are empty.
+pub fn band_correlations(a: &Array2<f32>, b: &Array2<f32>, bands: &[[f64; 2]]) -> Vec<f64> {
+    let mut sums = vec![[0.0f64; 3]; bands.len()];
+    if a.dim() == b.dim() {
+        if let (Some(fa), Some(fb)) = (windowed_spectrum(a), windowed_spectrum(b)) {
+            for (((r, c), x), y) in fa.indexed_iter().zip(fb.iter()) {
+                let fr = radial_freq(r, c, fa.dim());
+                for (s, &[f_lo, f_hi]) in sums.iter_mut().zip(bands) {
+                    if fr >= f_lo && fr < f_hi {
+                        s[0] += x.re * y.re + x.im * y.im;
+                        s[1] += x.norm_sqr();
+                        s[2] += y.norm_sqr();
+                    }
+                }
+            }
+        }
+    }
+    sums.iter()
+        .map(|&[ab, aa, bb]| {
+            if aa > 0.0 && bb > 0.0 {
+                ab / (aa * bb).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// The unnormalised 2D DFT of `z` with its mean removed and a separable periodic Hann window
+/// applied; `None` for an empty grid.
+fn windowed_spectrum(z: &Array2<f32>) -> Option<Array2<Complex>> {
+    let (rows, cols) = z.dim();
+    if rows == 0 || cols == 0 {
+        return None;
+    }
+    let mean = z.iter().map(|&v| v as f64).sum::<f64>() / z.len() as f64;
+    let (wr, wc) = (hann(rows), hann(cols));
+    let mut f = Array2::from_shape_fn((rows, cols), |(r, c)| {
+        Complex::new((z[[r, c]] as f64 - mean) * wr[r] * wc[c], 0.0)
+    });
+    fft2(&mut f, false);
+    Some(f)
+}
+
+/// `|f|` in cycles per sample of DFT bin `(r, c)` of a `(rows, cols)` spectrum.
+fn radial_freq(r: usize, c: usize, (rows, cols): (usize, usize)) -> f64 {
+    let (fy, fx) = (bin_freq(r, rows), bin_freq(c, cols));
+    (fx * fx + fy * fy).sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// `band_energies` against the 2D DFT written out as a double sum per frequency bin.
-    #[test]
-    fn band_energies_match_a_direct_dft() {
-        let (rows, cols) = (6, 8);
-        let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
-            ((r * 13 + c * 7) % 11) as f32 - 0.3 * (r * c) as f32
-        });
+    /// The windowed spectrum of `z` by the 2D DFT written out as a double sum per bin: `(|f|,
+    /// re, im)` per bin.
+    fn direct_spectrum(z: &Array2<f32>) -> Vec<(f64, f64, f64)> {
+        let (rows, cols) = z.dim();
         let mean = z.iter().map(|&v| v as f64).sum::<f64>() / z.len() as f64;
         let (wr, wc) = (hann(rows), hann(cols));
-        let bands = [[0.0, 1.0], [0.1, 0.3], [0.2, 0.5], [0.5, 1.0], [0.3, 0.3]];
-        let mut expected = [0.0f64; 5];
+        let mut out = Vec::new();
         for (kr, kc) in (0..rows).flat_map(|kr| (0..cols).map(move |kc| (kr, kc))) {
             let (mut re, mut im) = (0.0, 0.0);
             for ((r, c), &v) in z.indexed_iter() {
@@ -84,24 +125,78 @@ mod tests {
                 im += x * phase.sin();
             }
             let (fy, fx) = (bin_freq(kr, rows), bin_freq(kc, cols));
-            let fr = (fx * fx + fy * fy).sqrt();
-            for (e, &[lo, hi]) in expected.iter_mut().zip(&bands) {
+            out.push(((fx * fx + fy * fy).sqrt(), re, im));
+        }
+        out
+    }
+
+    fn test_grid(seed: usize) -> Array2<f32> {
+        Array2::from_shape_fn((6, 8), |(r, c)| {
+            ((r * 13 + c * 7 + seed) % 11) as f32 - 0.3 * (r * c) as f32
+        })
+    }
+
+    const BANDS: [[f64; 2]; 5] = [[0.0, 1.0], [0.1, 0.3], [0.2, 0.5], [0.5, 1.0], [0.3, 0.3]];
+
+    /// `band_energies` against the 2D DFT written out as a double sum per frequency bin.
+    #[test]
+    fn band_energies_match_a_direct_dft() {
+        let z = test_grid(0);
+        let mut expected = [0.0f64; 5];
+        for (fr, re, im) in direct_spectrum(&z) {
+            for (e, &[lo, hi]) in expected.iter_mut().zip(&BANDS) {
                 if fr >= lo && fr < hi {
                     *e += re * re + im * im;
                 }
             }
         }
-        let got = band_energies(&z, &bands);
-        assert_eq!(got.len(), bands.len());
+        let got = band_energies(&z, &BANDS);
+        assert_eq!(got.len(), BANDS.len());
         for (g, e) in got.iter().zip(&expected) {
             assert!((g - e).abs() <= 1e-9 * expected[0], "{g} vs {e}");
         }
         assert!(got[1] > 0.0 && got[3] > 0.0);
         assert_eq!(got[4], 0.0);
-        assert!(band_energies(&Array2::<f32>::zeros((0, 4)), &bands)
+        assert!(band_energies(&Array2::<f32>::zeros((0, 4)), &BANDS)
             .iter()
             .all(|&e| e == 0.0));
         assert!(band_energies(&z, &[]).is_empty());
+    }
+
+    /// `band_correlations` against the direct DFT; ±1 against itself and its negative; 0 where a
+    /// band is empty or the shapes differ.
+    #[test]
+    fn band_correlations_match_a_direct_dft() {
+        let (a, b) = (test_grid(0), test_grid(5));
+        let mut sums = [[0.0f64; 3]; 5];
+        for ((fr, ar, ai), (_, br, bi)) in direct_spectrum(&a).into_iter().zip(direct_spectrum(&b))
+        {
+            for (s, &[lo, hi]) in sums.iter_mut().zip(&BANDS) {
+                if fr >= lo && fr < hi {
+                    s[0] += ar * br + ai * bi;
+                    s[1] += ar * ar + ai * ai;
+                    s[2] += br * br + bi * bi;
+                }
+            }
+        }
+        let got = band_correlations(&a, &b, &BANDS);
+        for (g, s) in got.iter().zip(&sums).take(4) {
+            let e = s[0] / (s[1] * s[2]).sqrt();
+            assert!((g - e).abs() < 1e-9, "{g} vs {e}");
+            assert!(g.abs() < 1.0 - 1e-6);
+        }
+        assert_eq!(got[4], 0.0);
+        for (own, neg) in band_correlations(&a, &a, &BANDS)
+            .iter()
+            .zip(band_correlations(&a, &a.mapv(|v| -v), &BANDS))
+            .take(4)
+        {
+            assert!((own - 1.0).abs() < 1e-12 && (neg + 1.0).abs() < 1e-12);
+        }
+        let other = Array2::<f32>::zeros((6, 7));
+        assert!(band_correlations(&a, &other, &BANDS)
+            .iter()
+            .all(|&c| c == 0.0));
     }
 
     #[test]
