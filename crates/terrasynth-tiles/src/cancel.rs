@@ -15,6 +15,13 @@
 //! parameter. Work started without a token — a background thread, a command-line tool, a test —
 //! is never cancelled. A cancelled computation returns [`TileError::Cancelled`] and leaves no
 //! trace in any cache: a waiter that joined after its leader gave up computes it again.
+//!
+//! [`concurrently`] runs independent computations (the cold parent tiles of a landscape chain)
+//! on scoped threads of their own, each with its caller's interest, so that a cancellation
+//! reaches them as it would reach the caller. They are plain threads, not rayon tasks: a rayon
+//! worker that blocks on a flight may be the one that would have run the work the flight's leader
+//! waits for, while a thread blocked here holds nothing anyone else needs (a tile only ever waits
+//! for tiles of lower zooms or other layers of its own zoom, never for itself).
 
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -161,6 +168,44 @@ pub fn uncancellable<R>(f: impl FnOnce() -> R) -> R {
 /// Whether the computation running on this thread has been abandoned by everyone who wanted it.
 pub fn is_cancelled() -> bool {
     current().is_cancelled()
+}
+
+/// `f` of every item, concurrently: the first on this thread, each other on a scoped thread of
+/// its own that works on behalf of this thread's interest (a computation it starts or joins
+/// stops when this thread's would). The results come in the order of `items`. Items whose thread
+/// cannot be created run on this thread, after the first. For independent cold tiles that
+/// each block on their own chain (no rayon worker ever waits on a flight here, so a flight's
+/// leader never waits for work queued behind itself).
+pub fn concurrently<I: Sync, R: Send>(items: &[I], f: impl Fn(&I) -> R + Sync) -> Vec<R> {
+    let Some((first, rest)) = items.split_first() else {
+        return Vec::new();
+    };
+    let interest = current();
+    let f = &f;
+    std::thread::scope(|s| {
+        let spawned: Vec<_> = rest
+            .iter()
+            .map(|item| {
+                let interest = interest.clone();
+                std::thread::Builder::new()
+                    .name("terrasynth-chain".into())
+                    .spawn_scoped(s, move || with_interest(interest, || f(item)))
+                    .map_err(|_| item)
+            })
+            .collect();
+        let mut out = Vec::with_capacity(items.len());
+        out.push(f(first));
+        for handle in spawned {
+            match handle {
+                Ok(h) => match h.join() {
+                    Ok(r) => out.push(r),
+                    Err(panic) => std::panic::resume_unwind(panic),
+                },
+                Err(item) => out.push(f(item)),
+            }
+        }
+        out
+    })
 }
 
 /// One computation in progress: who waits for it, and its result once done.
@@ -331,6 +376,57 @@ mod tests {
             steps.fetch_add(1, Ordering::Relaxed);
             std::thread::sleep(Duration::from_millis(2));
         }
+    }
+
+    #[test]
+    fn concurrent_items_keep_their_order_and_run_on_threads_of_their_own() {
+        let items: Vec<u32> = (0..6).collect();
+        let threads = Mutex::new(Vec::new());
+        let out = concurrently(&items, |&i| {
+            lock(&threads).push(std::thread::current().id());
+            i * 10
+        });
+        assert_eq!(out, vec![0, 10, 20, 30, 40, 50]);
+        let mut ids = lock(&threads).clone();
+        assert_eq!(ids.len(), 6);
+        assert!(
+            ids.contains(&std::thread::current().id()),
+            "the first runs here"
+        );
+        ids.sort_by_key(|id| format!("{id:?}"));
+        ids.dedup();
+        assert_eq!(ids.len(), 6, "one thread per item");
+        assert!(concurrently(&[] as &[u32], |&i| i).is_empty());
+    }
+
+    #[test]
+    fn concurrent_items_work_on_behalf_of_the_caller() {
+        // A cancellation of the caller's token reaches the computations on the other threads,
+        // as it would reach the caller's own: each stops at its next check.
+        let token = CancelToken::new();
+        let started = AtomicUsize::new(0);
+        let out = run_cancellable(&token, || {
+            concurrently(&[0, 1, 2], |_| {
+                started.fetch_add(1, Ordering::AcqRel);
+                let deadline = std::time::Instant::now() + Duration::from_secs(10);
+                while std::time::Instant::now() < deadline {
+                    if started.load(Ordering::Acquire) == 3 {
+                        token.cancel();
+                    }
+                    if is_cancelled() {
+                        return Err(TileError::Cancelled);
+                    }
+                    std::thread::yield_now();
+                }
+                Ok(())
+            })
+        });
+        assert_eq!(out, vec![Err(TileError::Cancelled); 3]);
+        // Without a token nothing is cancelled, on any thread.
+        assert_eq!(
+            concurrently(&[0, 1], |_| is_cancelled()),
+            vec![false, false]
+        );
     }
 
     #[test]

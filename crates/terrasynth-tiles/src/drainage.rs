@@ -27,7 +27,7 @@ use crate::base_layers::{cut, WholeWorld};
 use crate::coverage::mask_in_place;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
-use crate::pyramid::{assemble, overview, tile_window, LevelCache};
+use crate::pyramid::{assemble_concurrently, overview, tile_window, LevelCache};
 use crate::water::{zero_under_water, WaterLevels, DEPTH, SEA};
 
 /// Ground the routing halo of an amplified drainage tile aims to reach (metres of the zoom's
@@ -98,7 +98,12 @@ impl DrainageLevels {
         z: u8,
         w: Window,
     ) -> Result<Array2<f32>, TileError> {
-        assemble(w, 1, |tx, ty| self.tile(elevation, whole, water, z, tx, ty))
+        assemble_concurrently(
+            w,
+            1,
+            |tx, ty| self.cache.is_known(&(z, tx, ty)),
+            |tx, ty| self.tile(elevation, whole, water, z, tx, ty),
+        )
     }
 
     fn compute(

@@ -1,7 +1,8 @@
 //! The one level pyramid every layer uses: level tiles cached per `(zoom, column, row)` and
 //! computed once even under concurrent requests ([`LevelCache`]; every lookup that misses is a
 //! cancellation point, see [`crate::cancel`]), windows of a zoom's pixel plane
-//! assembled from those tiles ([`assemble`]), and overview tiles reduced from their four children
+//! assembled from those tiles ([`assemble`]; [`assemble_concurrently`] computes the cold ones
+//! side by side), and overview tiles reduced from their four children
 //! ([`overview`]).
 //!
 //! A layer's tile is a stack of `f32` planes (one for elevation and drainage, one per species for
@@ -18,7 +19,7 @@ use ndarray::{s, Array2};
 use terrasynth_core::raster::reduce2x2;
 use terrasynth_core::synth::Window;
 
-use crate::cancel::Flights;
+use crate::cancel::{concurrently, Flights};
 use crate::error::TileError;
 use crate::mercator::TILE_SIZE;
 
@@ -230,6 +231,41 @@ pub fn assemble<T: LevelTile>(
     Ok(T::from_planes(out))
 }
 
+/// [`assemble`], with the tiles that are neither cached nor being computed (`known` is false)
+/// computed concurrently ([`concurrently`]): the parent tiles of a cold landscape tile are
+/// independent chains, each mostly sequential (priority-flood, D8), so one thread each keeps
+/// every core busy. Values are the same as [`assemble`]'s: a tile is a pure function of its key.
+pub fn assemble_concurrently<T: LevelTile>(
+    w: Window,
+    planes: usize,
+    known: impl Fn(i64, i64) -> bool,
+    tile: impl Fn(i64, i64) -> Result<Arc<T>, TileError> + Sync,
+) -> Result<T, TileError> {
+    let mut cold = Vec::new();
+    for_each_tile_part(w, |tx, ty, _, _| {
+        if !known(tx, ty) {
+            cold.push((tx, ty));
+        }
+        Ok(())
+    })?;
+    if cold.len() < 2 {
+        return assemble(w, planes, tile);
+    }
+    let mut fetched = Vec::with_capacity(cold.len());
+    for (key, r) in cold
+        .iter()
+        .zip(concurrently(&cold, |&(tx, ty)| tile(tx, ty)))
+    {
+        fetched.push((*key, r?));
+    }
+    assemble(w, planes, |tx, ty| {
+        match fetched.iter().find(|(key, _)| *key == (tx, ty)) {
+            Some((_, t)) => Ok(t.clone()),
+            None => tile(tx, ty),
+        }
+    })
+}
+
 /// An overview tile: each of its `planes` planes is made of its four children's 2×2 blocks
 /// reduced by `reduce` (the box average for quantities that average, the maximum for drainage).
 /// `child(cx, cy)` returns `None` for a child outside the world, whose quarter keeps `fill`.
@@ -284,6 +320,46 @@ mod tests {
                 assert_eq!(got[[r, c]], want);
             }
         }
+    }
+
+    #[test]
+    fn concurrently_assembled_windows_equal_the_plane() {
+        // Twelve tiles (4 × 3), two of them known (fetched on the calling thread), the others each on a
+        // thread of its own; every value where `assemble` puts it.
+        let w = Window::new(-300, 200, 600, 400);
+        let known = |tx: i64, ty: i64| (tx, ty) == (0, 1) || (tx, ty) == (-2, 0);
+        let threads = std::sync::Mutex::new(Vec::new());
+        let got: Array2<f32> = assemble_concurrently(w, 1, known, |tx, ty| {
+            if !known(tx, ty) {
+                threads
+                    .lock()
+                    .unwrap()
+                    .push(format!("{:?}", std::thread::current().id()));
+            }
+            Ok(Arc::new(ramp(tx, ty)))
+        })
+        .unwrap();
+        let want: Array2<f32> = assemble(w, 1, |tx, ty| Ok(Arc::new(ramp(tx, ty)))).unwrap();
+        assert_eq!(got, want);
+        let mut ids = threads.into_inner().unwrap();
+        assert_eq!(ids.len(), 10, "each cold tile computed once");
+        ids.sort();
+        ids.dedup();
+        assert_eq!(ids.len(), 10, "one thread per cold tile");
+        // A failing tile fails the window.
+        let failed: Result<Array2<f32>, TileError> = assemble_concurrently(
+            w,
+            1,
+            |_, _| false,
+            |tx, ty| {
+                if (tx, ty) == (1, 2) {
+                    Err(TileError::Cancelled)
+                } else {
+                    Ok(Arc::new(ramp(tx, ty)))
+                }
+            },
+        );
+        assert_eq!(failed, Err(TileError::Cancelled));
     }
 
     #[test]

@@ -32,7 +32,7 @@ use crate::coverage::mask_in_place;
 use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
-use crate::pyramid::{assemble, overview, tile_window, LevelCache};
+use crate::pyramid::{assemble_concurrently, overview, tile_window, LevelCache};
 use crate::terrain::Terrain;
 use crate::water::{zero_under_water, WaterLevels, DEPTH};
 
@@ -108,9 +108,12 @@ impl VegetationLevels {
         z: u8,
         w: Window,
     ) -> Result<Vec<Array2<f32>>, TileError> {
-        assemble(w, self.landscape.species.len(), |tx, ty| {
-            self.tile(inputs, z, tx, ty)
-        })
+        assemble_concurrently(
+            w,
+            self.landscape.species.len(),
+            |tx, ty| self.cache.is_known(&(z, tx, ty)),
+            |tx, ty| self.tile(inputs, z, tx, ty),
+        )
     }
 
     fn compute(
