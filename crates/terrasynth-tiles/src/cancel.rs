@@ -21,7 +21,8 @@
 //! reaches them as it would reach the caller. They are plain threads, not rayon tasks: a rayon
 //! worker that blocks on a flight may be the one that would have run the work the flight's leader
 //! waits for, while a thread blocked here holds nothing anyone else needs (a tile only ever waits
-//! for tiles of lower zooms or other layers of its own zoom, never for itself).
+//! for tiles of lower zooms or other layers of its own zoom, never for itself). Called on a rayon
+//! worker, it runs the computations on that worker, one after the other.
 
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -173,13 +174,19 @@ pub fn is_cancelled() -> bool {
 /// `f` of every item, concurrently: the first on this thread, each other on a scoped thread of
 /// its own that works on behalf of this thread's interest (a computation it starts or joins
 /// stops when this thread's would). The results come in the order of `items`. Items whose thread
-/// cannot be created run on this thread, after the first. For independent cold tiles that
-/// each block on their own chain (no rayon worker ever waits on a flight here, so a flight's
-/// leader never waits for work queued behind itself).
+/// cannot be created run on this thread, after the first.
+///
+/// On a rayon worker (an export renders its tiles in parallel on rayon's pool) every item runs
+/// on this thread, in order: the items' own parallel kernels need the pool's workers, and a
+/// worker blocked here waiting for the threads would be one fewer — with every worker waiting
+/// so, the pool would never run them.
 pub fn concurrently<I: Sync, R: Send>(items: &[I], f: impl Fn(&I) -> R + Sync) -> Vec<R> {
     let Some((first, rest)) = items.split_first() else {
         return Vec::new();
     };
+    if rayon::current_thread_index().is_some() {
+        return items.iter().map(f).collect();
+    }
     let interest = current();
     let f = &f;
     std::thread::scope(|s| {
@@ -397,6 +404,35 @@ mod tests {
         ids.dedup();
         assert_eq!(ids.len(), 6, "one thread per item");
         assert!(concurrently(&[] as &[u32], |&i| i).is_empty());
+    }
+
+    #[test]
+    fn concurrent_items_on_a_rayon_worker_leave_the_pool_its_workers() {
+        // Every worker of a one-thread pool asks for items whose work runs on that same pool
+        // (an export's tiles, each with a drainage chain that amplifies in parallel). Items on
+        // threads of their own would wait for a worker that waits for them; run on the worker
+        // itself they finish. A hang fails the test after 20 s.
+        let pool = match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+            Ok(p) => Arc::new(p),
+            Err(e) => panic!("a one-thread pool: {e}"),
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        let inner = pool.clone();
+        std::thread::spawn(move || {
+            let sums = pool.install(|| {
+                concurrently(&[1u64, 2, 3], |&k| {
+                    inner.install(|| {
+                        use rayon::prelude::*;
+                        (0..1000u64).into_par_iter().map(|v| v * k).sum::<u64>()
+                    })
+                })
+            });
+            let _ = tx.send(sums);
+        });
+        let sums = rx
+            .recv_timeout(Duration::from_secs(20))
+            .unwrap_or_else(|e| panic!("the pool's work never ran: {e}"));
+        assert_eq!(sums, vec![499_500, 999_000, 1_498_500]);
     }
 
     #[test]
