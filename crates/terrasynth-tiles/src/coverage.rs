@@ -43,6 +43,12 @@ impl CoverageLevels {
         }
     }
 
+    /// The base's per-cell validity, read once ([`source_validity`]; `None`: every cell is
+    /// valid), for the resampling of the base's own values.
+    pub(crate) fn base_validity(&self) -> Option<&Array2<bool>> {
+        self.valid.as_ref()
+    }
+
     /// The cache of overview tiles.
     pub fn cache(&self) -> &LevelCache<Array2<f32>> {
         &self.cache

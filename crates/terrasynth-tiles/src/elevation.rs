@@ -46,7 +46,7 @@ use crate::coverage::CoverageLevels;
 use crate::error::TileError;
 use crate::extent::Extent;
 use crate::pyramid::{assemble, for_each_tile_part, overview, tile_window, LevelCache, TileKey};
-use crate::resample::mercator_window_from_grid;
+use crate::resample::mercator_window_from_valid_grid;
 
 /// The elevation levels of a world.
 pub struct ElevationLevels {
@@ -291,8 +291,10 @@ impl ElevationLevels {
         let w = tile_window(tx, ty);
         let zb = self.extent.z_base;
         if z == zb {
-            let (values, _) = mercator_window_from_grid(
+            // The base's validity is read once (with the coverage levels), not per tile.
+            let (values, _) = mercator_window_from_valid_grid(
                 &self.base,
+                self.coverage.base_validity(),
                 z,
                 w.col0,
                 w.row0,

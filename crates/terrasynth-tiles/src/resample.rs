@@ -9,6 +9,7 @@
 use std::f64::consts::PI;
 
 use ndarray::Array2;
+use rayon::prelude::*;
 
 use terrasynth_core::raster::georef::{Crs, MERCATOR_RADIUS_M};
 use terrasynth_core::raster::grid::Grid;
@@ -72,8 +73,29 @@ fn wrapped_tap(coord: f64, origin: f64, step: f64, n: usize, period: f64) -> Opt
 ///
 /// So the mask is `true` exactly where the value comes from source data. The result is a pure
 /// function of the inputs (computed in `f64`, no fused multiply-add).
+///
+/// Reads the whole grid once for its validity ([`source_validity`]); a caller that samples one
+/// grid many times (a world's base, tile by tile) reads it once and calls
+/// [`mercator_window_from_valid_grid`].
 pub fn mercator_window_from_grid(
     grid: &Grid,
+    z: u8,
+    col0: i64,
+    row0: i64,
+    cols: usize,
+    rows: usize,
+    fill: f32,
+) -> (Array2<f32>, Array2<bool>) {
+    let valid = source_validity(grid);
+    mercator_window_from_valid_grid(grid, valid.as_ref(), z, col0, row0, cols, rows, fill)
+}
+
+/// [`mercator_window_from_grid`] with the grid's validity given: `valid` must be
+/// [`source_validity`]`(grid)`.
+#[allow(clippy::too_many_arguments)]
+pub fn mercator_window_from_valid_grid(
+    grid: &Grid,
+    valid: Option<&Array2<bool>>,
     z: u8,
     col0: i64,
     row0: i64,
@@ -88,55 +110,62 @@ pub fn mercator_window_from_grid(
         return (values, mask);
     }
     let (row_taps, col_taps) = taps(grid, z, col0, row0, cols, rows);
-    // Validity of every source cell, looked up once.
-    let src_valid = source_validity(grid);
     let data = &grid.data;
 
-    for (j, row_tap) in row_taps.iter().enumerate() {
-        let Some(ry) = row_tap else { continue };
-        for (i, col_tap) in col_taps.iter().enumerate() {
-            let Some(cx) = col_tap else { continue };
-            let taps = [
-                (ry.i0, cx.i0, (1.0 - ry.t) * (1.0 - cx.t)),
-                (ry.i0, cx.i1, (1.0 - ry.t) * cx.t),
-                (ry.i1, cx.i0, ry.t * (1.0 - cx.t)),
-                (ry.i1, cx.i1, ry.t * cx.t),
-            ];
-            let value = match &src_valid {
-                None => Some(
-                    taps.iter()
-                        .map(|&(r, c, w)| w * f64::from(data[[r, c]]))
-                        .sum::<f64>(),
-                ),
-                Some(valid) => {
-                    let mut sum = 0.0f64;
-                    let mut weight = 0.0f64;
-                    let mut plain_sum = 0.0f64;
-                    let mut count = 0u32;
-                    for &(r, c, w) in &taps {
-                        if valid[[r, c]] {
-                            let v = f64::from(data[[r, c]]);
-                            sum += w * v;
-                            weight += w;
-                            plain_sum += v;
-                            count += 1;
+    let (Some(value_rows), Some(mask_rows)) = (values.as_slice_mut(), mask.as_slice_mut()) else {
+        return (values, mask);
+    };
+    // Rows in parallel: each output row reads its own taps and writes only itself.
+    let out_rows = value_rows
+        .par_chunks_mut(cols)
+        .zip(mask_rows.par_chunks_mut(cols));
+    out_rows
+        .zip(&row_taps)
+        .for_each(|((value_row, mask_row), row_tap)| {
+            let Some(ry) = row_tap else { return };
+            for (i, col_tap) in col_taps.iter().enumerate() {
+                let Some(cx) = col_tap else { continue };
+                let taps = [
+                    (ry.i0, cx.i0, (1.0 - ry.t) * (1.0 - cx.t)),
+                    (ry.i0, cx.i1, (1.0 - ry.t) * cx.t),
+                    (ry.i1, cx.i0, ry.t * (1.0 - cx.t)),
+                    (ry.i1, cx.i1, ry.t * cx.t),
+                ];
+                let value = match valid {
+                    None => Some(
+                        taps.iter()
+                            .map(|&(r, c, w)| w * f64::from(data[[r, c]]))
+                            .sum::<f64>(),
+                    ),
+                    Some(valid) => {
+                        let mut sum = 0.0f64;
+                        let mut weight = 0.0f64;
+                        let mut plain_sum = 0.0f64;
+                        let mut count = 0u32;
+                        for &(r, c, w) in &taps {
+                            if valid[[r, c]] {
+                                let v = f64::from(data[[r, c]]);
+                                sum += w * v;
+                                weight += w;
+                                plain_sum += v;
+                                count += 1;
+                            }
+                        }
+                        if count == 0 {
+                            None
+                        } else if weight > 0.0 {
+                            Some(sum / weight)
+                        } else {
+                            Some(plain_sum / f64::from(count))
                         }
                     }
-                    if count == 0 {
-                        None
-                    } else if weight > 0.0 {
-                        Some(sum / weight)
-                    } else {
-                        Some(plain_sum / f64::from(count))
-                    }
+                };
+                if let Some(v) = value {
+                    value_row[i] = v as f32;
+                    mask_row[i] = true;
                 }
-            };
-            if let Some(v) = value {
-                values[[j, i]] = v as f32;
-                mask[[j, i]] = true;
             }
-        }
-    }
+        });
     (values, mask)
 }
 
@@ -221,18 +250,28 @@ pub fn mercator_mask_from_grid(
         return mask;
     }
     let (row_taps, col_taps) = taps(grid, z, col0, row0, cols, rows);
-    for (j, row_tap) in row_taps.iter().enumerate() {
-        let Some(ry) = row_tap else { continue };
-        for (i, col_tap) in col_taps.iter().enumerate() {
-            let Some(cx) = col_tap else { continue };
-            mask[[j, i]] = match valid {
-                None => true,
-                Some(v) => {
-                    v[[ry.i0, cx.i0]] || v[[ry.i0, cx.i1]] || v[[ry.i1, cx.i0]] || v[[ry.i1, cx.i1]]
-                }
-            };
-        }
-    }
+    let Some(mask_rows) = mask.as_slice_mut() else {
+        return mask;
+    };
+    // Rows in parallel, as in `mercator_window_from_grid`.
+    mask_rows
+        .par_chunks_mut(cols)
+        .zip(&row_taps)
+        .for_each(|(mask_row, row_tap)| {
+            let Some(ry) = row_tap else { return };
+            for (i, col_tap) in col_taps.iter().enumerate() {
+                let Some(cx) = col_tap else { continue };
+                mask_row[i] = match valid {
+                    None => true,
+                    Some(v) => {
+                        v[[ry.i0, cx.i0]]
+                            || v[[ry.i0, cx.i1]]
+                            || v[[ry.i1, cx.i0]]
+                            || v[[ry.i1, cx.i1]]
+                    }
+                };
+            }
+        });
     mask
 }
 

@@ -4,6 +4,7 @@
 //! contains them.
 
 use ndarray::Array2;
+use rayon::prelude::*;
 
 use super::common::{row_sizes, values};
 use crate::raster::CellSizes;
@@ -29,7 +30,9 @@ pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
     let (Some(gxs), Some(gys)) = (gx.as_slice_mut(), gy.as_slice_mut()) else {
         return (gx, gy);
     };
-    for r in 0..rows {
+    // Rows in parallel: each output row reads three input rows and writes only itself.
+    let rows_out = gxs.par_chunks_mut(cols).zip(gys.par_chunks_mut(cols));
+    rows_out.enumerate().for_each(|(r, (gx_row, gy_row))| {
         let rn = r.saturating_sub(1);
         let rs = (r + 1).min(rows - 1);
         let (north, mid, south) = (
@@ -49,10 +52,10 @@ pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
                 + (i - g) / (2.0 * dx[rs]))
                 / 4.0;
             let ny = ((a + 2.0 * b + cc) - (g + 2.0 * h + i)) / ydist;
-            gxs[r * cols + c] = ex as f32;
-            gys[r * cols + c] = ny as f32;
+            gx_row[c] = ex as f32;
+            gy_row[c] = ny as f32;
         }
-    }
+    });
     (gx, gy)
 }
 
@@ -61,12 +64,14 @@ pub fn slope(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
     let (gx, gy) = gradient(z, cs);
     ndarray::Zip::from(&gx)
         .and(&gy)
-        .map_collect(|&x, &y| ((x as f64).hypot(y as f64)) as f32)
+        .par_map_collect(|&x, &y| ((x as f64).hypot(y as f64)) as f32)
 }
 
 /// Slope in degrees, `atan(`[`slope`]`)`, in [0, 90).
 pub fn slope_degrees(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
-    slope(z, cs).mapv(|s| (s as f64).atan().to_degrees() as f32)
+    let mut s = slope(z, cs);
+    s.par_mapv_inplace(|s| (s as f64).atan().to_degrees() as f32);
+    s
 }
 
 /// Aspect: the compass direction (degrees clockwise from north) of the downslope direction the
@@ -95,7 +100,7 @@ pub fn aspect(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
 /// south, 0 on flat cells.
 pub fn northness(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
     let (gx, gy) = gradient(z, cs);
-    ndarray::Zip::from(&gx).and(&gy).map_collect(|&x, &y| {
+    ndarray::Zip::from(&gx).and(&gy).par_map_collect(|&x, &y| {
         let s = (x as f64).hypot(y as f64);
         if s == 0.0 {
             0.0

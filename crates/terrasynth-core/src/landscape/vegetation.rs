@@ -286,7 +286,7 @@ pub fn suitability_grid(
         .and(slope_deg)
         .and(northness)
         .and(wetness)
-        .map_collect(|&e, &s, &n, &w| suitability(sp, e, s, n, w))
+        .par_map_collect(|&e, &s, &n, &w| suitability(sp, e, s, n, w))
 }
 
 /// Patchy densities of every species on a grid whose cell `(0, 0)` is global `(row0, col0)`:
