@@ -176,8 +176,8 @@ pub fn is_cancelled() -> bool {
 /// stops when this thread's would). The results come in the order of `items`. Items whose thread
 /// cannot be created run on this thread, after the first.
 ///
-/// On a rayon worker (an export renders its tiles in parallel on rayon's pool) every item runs
-/// on this thread, in order: the items' own parallel kernels need the pool's workers, and a
+/// On a rayon worker (a caller's parallel loop; `terrasynth export` renders its tiles on plain
+/// threads for the same reason) every item runs on this thread, in order: the items' own parallel kernels need the pool's workers, and a
 /// worker blocked here waiting for the threads would be one fewer — with every worker waiting
 /// so, the pool would never run them.
 pub fn concurrently<I: Sync, R: Send>(items: &[I], f: impl Fn(&I) -> R + Sync) -> Vec<R> {

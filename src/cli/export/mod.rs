@@ -5,9 +5,10 @@
 //!
 //! Tiles are produced by the tiles crate's [`render`] from requests parsed by [`parse_request`]
 //! from the same path the server serves (`{layer}/{z}/{x}/{y}.{ext}` without query), so an
-//! exported tile is byte-identical to the served one. Tiles are rendered in parallel (rayon) in
-//! chunks and written in PMTiles tile-id (Hilbert) order; shard `I` of `N` takes the `I`-th of
-//! `N` equal consecutive slices of that order, so that a merge is a concatenation. Archives are
+//! exported tile is byte-identical to the served one. Tiles are rendered in parallel in chunks
+//! (on plain threads, [`on_threads`]; their kernels use rayon's pool) and written in PMTiles
+//! tile-id (Hilbert) order; shard `I` of `N` takes the `I`-th of `N` equal consecutive slices of
+//! that order, so that a merge is a concatenation. Archives are
 //! written under a temporary name (`.NAME.tmp-PID` beside the output) and renamed when complete:
 //! an interrupted export leaves nothing that looks like a finished archive, and the next export
 //! to the same name removes the temporary files of exports whose process no longer runs.
@@ -15,9 +16,9 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use rayon::prelude::*;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
@@ -339,7 +340,8 @@ pub fn run(
     let total = (tiles.len() as u64).saturating_mul(args.layers.len() as u64);
     let mut done = 0u64;
     progress(0, total);
-    let chunk = rayon::current_num_threads().clamp(1, 64).saturating_mul(8);
+    let threads = rayon::current_num_threads().clamp(1, 64);
+    let chunk = threads.saturating_mul(8);
     let mut archives = Vec::new();
     for layer in &args.layers {
         let output = layer_output(&args.output, &args.layers, layer);
@@ -363,13 +365,10 @@ pub fn run(
         };
         let mut unique = std::collections::HashSet::new();
         for part in tiles.chunks(chunk) {
-            let rendered: Vec<Result<Vec<u8>, CliError>> = part
-                .par_iter()
-                .map(|t| {
-                    let req = request(world, layer, args.tile_format, (t.z, t.x, t.y))?;
-                    Ok(render(world, &req)?)
-                })
-                .collect();
+            let rendered: Vec<Result<Vec<u8>, CliError>> = on_threads(part, threads, |t| {
+                let req = request(world, layer, args.tile_format, (t.z, t.x, t.y))?;
+                Ok(render(world, &req)?)
+            });
             for (t, bytes) in part.iter().zip(rendered) {
                 let bytes = bytes?;
                 match &mut sink {
@@ -416,9 +415,76 @@ pub fn run(
     })
 }
 
+/// `f` of every item on `threads` plain threads (this one and scoped ones, not rayon's
+/// workers), the results in the order of `items`.
+///
+/// A tile's computation can wait for a tile another computation is making (a flight). A rayon
+/// worker that waits inside a parallel loop runs other jobs meanwhile, so on rayon's pool a
+/// tile's wait could sit on top of the stolen half of the very kernel it waits for; with every
+/// worker caught so the export hung (8 rayon threads on 2 cores, in about half the runs). Plain
+/// threads block without taking rayon's jobs, as the server's blocking threads do; the
+/// kernels' own parallel loops still run on rayon's pool. A thread that cannot be created
+/// leaves its share to the others (at worst to this thread alone); a panic in `f` is passed on.
+fn on_threads<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut out = Vec::new();
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let Some(item) = items.get(i) else { break };
+            out.push((i, f(item)));
+        }
+        out
+    };
+    let mut done: Vec<(usize, R)> = std::thread::scope(|s| {
+        let helpers: Vec<_> = (1..threads.clamp(1, items.len().max(1)))
+            .filter_map(|k| {
+                std::thread::Builder::new()
+                    .name(format!("ts-export-{k}"))
+                    .spawn_scoped(s, work)
+                    .ok()
+            })
+            .collect();
+        let mut all = work();
+        for h in helpers {
+            match h.join() {
+                Ok(part) => all.extend(part),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+        all
+    });
+    done.sort_unstable_by_key(|&(i, _)| i);
+    done.into_iter().map(|(_, r)| r).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn items_run_on_plain_threads_and_come_back_in_order() {
+        let items: Vec<u32> = (0..100).collect();
+        for threads in [1, 3, 8] {
+            let out = on_threads(&items, threads, |&i| {
+                // Never on one of rayon's workers, where a wait could hold a stolen kernel.
+                (i * 2, rayon::current_thread_index().is_none())
+            });
+            assert_eq!(out.len(), items.len());
+            for (k, &(v, plain)) in out.iter().enumerate() {
+                assert_eq!(v, 2 * k as u32, "order, {threads} threads");
+                assert!(plain, "item {k} ran on a rayon worker");
+            }
+        }
+        // More than one thread works when asked to.
+        let ids: Vec<std::thread::ThreadId> = on_threads(&items, 4, |_| {
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            std::thread::current().id()
+        });
+        let distinct: std::collections::HashSet<_> = ids.into_iter().collect();
+        assert!(distinct.len() > 1, "one thread did everything");
+        assert!(on_threads(&[] as &[u32], 4, |&i| i).is_empty());
+    }
 
     #[test]
     fn arguments_parse_and_bad_ones_are_named() {
