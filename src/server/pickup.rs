@@ -122,7 +122,7 @@ impl AppState {
         .await?;
         match found {
             Some(w) => {
-                prepare_landscapes(vec![w.clone()]);
+                prepare_landscapes(vec![w.clone()], self.store());
                 Ok(w)
             }
             None => {
@@ -148,7 +148,7 @@ pub fn spawn_store_sync(state: &AppState) {
             tick.tick().await;
             let s = state.clone();
             match blocking(move || sync_once(&s)).await {
-                Ok(added) if !added.is_empty() => prepare_landscapes(added),
+                Ok(added) if !added.is_empty() => prepare_landscapes(added, state.store()),
                 Ok(_) => {}
                 Err(e) => tracing::warn!(error = %e, "store sync failed; retrying"),
             }

@@ -156,7 +156,10 @@ pub async fn serve(config: Config) -> Result<(), StartupError> {
     let state = tokio::task::spawn_blocking(move || build_state(&cfg))
         .await
         .map_err(|e| StartupError::Runtime(e.to_string()))??;
-    prepare_landscapes(state.live.snapshot().values().cloned().collect());
+    prepare_landscapes(
+        state.live.snapshot().values().cloned().collect(),
+        state.store(),
+    );
     super::pickup::spawn_store_sync(&state);
     if state.admin.as_ref().is_some_and(|a| a.enabled()) {
         tracing::info!("admin API enabled under /admin");

@@ -232,6 +232,11 @@ impl AppState {
             .clone()
             .ok_or_else(|| ServerError::NotFound("no such resource".into()))
     }
+
+    /// The store, when the server has one (with the admin API's catalogue).
+    pub fn store(&self) -> Option<terrasynth_store::Store> {
+        self.admin.as_ref().map(|a| a.catalogue.store().clone())
+    }
 }
 
 /// Runs CPU- or IO-bound work on the blocking pool, never on a runtime thread.

@@ -7,8 +7,8 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::Arc;
-use std::time::Instant;
+use std::sync::{Arc, OnceLock};
+use std::time::{Instant, UNIX_EPOCH};
 
 use sha2::{Digest, Sha256};
 
@@ -423,33 +423,95 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
     })
 }
 
-/// Computes the whole-world landscape layers of `worlds` one after the other on a background
-/// thread ([`World::prepare_landscape`]), so that the first landscape tile of a world does not
-/// pay for them; a request that arrives first waits for the same computation.
-pub fn prepare_landscapes(worlds: Vec<Arc<World>>) {
+/// Prepares the whole-world landscape layers of `worlds` one after the other on a background
+/// thread, so that the first landscape tile of a world does not pay for them (a request that
+/// arrives first waits for the same computation). With a `store`, each world's layers are read
+/// from their stored copy when it was written by this build for the same inputs
+/// ([`World::restore_landscape`]; 1.5 s of computing for the default world), and stored after
+/// they are computed, so that the next start reads them.
+pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
     let spawned = std::thread::Builder::new()
         .name("landscape-prepare".into())
         .spawn(move || {
             for world in worlds {
-                let t = Instant::now();
-                match world.prepare_landscape() {
-                    Ok(bytes) => tracing::info!(
-                        world = %world.name(),
-                        mib = bytes as f64 / f64::from(1u32 << 20),
-                        seconds = t.elapsed().as_secs_f64(),
-                        "world: whole-world landscape layers ready"
-                    ),
-                    Err(e) => tracing::warn!(
-                        world = %world.name(),
-                        error = %e,
-                        "world: whole-world landscape layers failed; landscape tiles will answer errors"
-                    ),
-                }
+                prepare_landscape(&world, store.as_ref());
             }
         });
     if let Err(e) = spawned {
         tracing::warn!("cannot start the landscape preparation thread: {e}");
     }
+}
+
+fn prepare_landscape(world: &World, store: Option<&Store>) {
+    let t = Instant::now();
+    let name = world.name();
+    let cache = store.zip(build_identity());
+    let restored = match cache {
+        Some((store, build)) => {
+            let stored = store.get_landscape(name).unwrap_or_else(|e| {
+                tracing::warn!(world = %name, error = %e, "world: cannot read the stored whole-world layers");
+                None
+            });
+            world
+                .restore_landscape(stored.as_deref(), build)
+                .map(|r| Some((store, r)))
+        }
+        None => world.prepare_landscape().map(|_| None),
+    };
+    let restored = match restored {
+        Ok(r) => r,
+        Err(e) => {
+            tracing::warn!(
+                world = %name,
+                error = %e,
+                "world: whole-world landscape layers failed; landscape tiles will answer errors"
+            );
+            return;
+        }
+    };
+    let mut how = "computed";
+    if let Some((store, r)) = restored {
+        if let Some(why) = r.refused {
+            tracing::info!(world = %name, reason = %why, "world: stored whole-world layers not used");
+        }
+        if r.loaded {
+            how = "read from the store";
+        }
+        if let Some(bytes) = r.to_store {
+            if let Err(e) = store.put_landscape(name, &bytes) {
+                tracing::warn!(world = %name, error = %e, "world: cannot store the whole-world layers");
+            }
+        }
+    }
+    let mib = world.prepare_landscape().unwrap_or(0) as f64 / f64::from(1u32 << 20);
+    tracing::info!(
+        world = %name,
+        mib,
+        seconds = t.elapsed().as_secs_f64(),
+        how,
+        "world: whole-world landscape layers ready"
+    );
+}
+
+/// Stands for the code that computes the whole-world layers in the key of their stored copy:
+/// the package version and the running executable's length and modification time, so that any
+/// rebuild refuses the copies of the build before. `None` when the executable cannot be
+/// examined: the layers are computed and not stored then.
+fn build_identity() -> Option<&'static [u8]> {
+    static BUILD: OnceLock<Option<Vec<u8>>> = OnceLock::new();
+    BUILD
+        .get_or_init(|| {
+            let meta = std::fs::metadata(std::env::current_exe().ok()?).ok()?;
+            let modified = meta.modified().ok()?.duration_since(UNIX_EPOCH).ok()?;
+            let id = format!(
+                "terrasynth {} {} {}",
+                env!("CARGO_PKG_VERSION"),
+                meta.len(),
+                modified.as_nanos()
+            );
+            Some(id.into_bytes())
+        })
+        .as_deref()
 }
 
 #[cfg(test)]

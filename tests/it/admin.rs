@@ -891,11 +891,19 @@ async fn build_a_dictionary_create_a_world_and_serve_its_tiles() {
         send(&app, del("/admin/jobs/nope".into())).await.0,
         StatusCode::NOT_FOUND
     );
-    // Deleting the world frees the dictionary and the base.
+    // Its whole-world layers, prepared in the background, are stored under its name...
+    let layers = dir.path().join("landscape/mine.layers");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while !layers.exists() {
+        assert!(std::time::Instant::now() < deadline, "layers never stored");
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
+    // Deleting the world frees the dictionary and the base (and drops its stored layers).
     assert_eq!(
         send(&app, del("/admin/worlds/mine".into())).await.0,
         StatusCode::NO_CONTENT
     );
+    assert!(!layers.exists());
     assert_eq!(
         send(&app, get("/tiles/mine/elevation/8/0/0.png")).await.0,
         StatusCode::NOT_FOUND

@@ -12,6 +12,7 @@ use std::collections::HashMap;
 use ndarray::Array2;
 
 use terrasynth_core::synth::Window;
+use terrasynth_tiles::layer_file::Refused;
 use terrasynth_tiles::{parse_request, render, World};
 
 use terrasynth_test_support::{small_dictionary_with_vegetation, synthetic_terrain};
@@ -54,6 +55,14 @@ fn in_bowl(z: u8, px: i64, py: i64) -> bool {
 
 /// The mini world's place and settings (70°E 43°N, 15″, native zoom 8) with lakes on.
 fn lake_world() -> World {
+    lake_world_with(terrasynth_core::landscape::WaterConfig {
+        lakes: true,
+        ..Default::default()
+    })
+}
+
+/// The mini world with water settings `water`.
+fn lake_world_with(water: terrasynth_core::landscape::WaterConfig) -> World {
     use terrasynth_core::raster::{Crs, Georef, Grid};
     let base = Grid::new(
         lake_base(),
@@ -82,10 +91,7 @@ fn lake_world() -> World {
         landscape: terrasynth_core::landscape::LandscapeConfig::tienshan(),
         center: None,
         sparsity: None,
-        water: terrasynth_core::landscape::WaterConfig {
-            lakes: true,
-            ..Default::default()
-        },
+        water,
         classes: None,
         biomes: Vec::new(),
         controls: Vec::new(),
@@ -377,11 +383,19 @@ fn water_tiles_are_the_same_bytes_from_two_processes() {
     let cfg = dir.path().join("server.toml");
     std::fs::write(&cfg, format!("worlds = [{:?}]\n", world.to_str().unwrap())).unwrap();
     let mut bodies: Vec<Vec<Vec<u8>>> = Vec::new();
-    for run in 0..2 {
+    // Runs 0 and 1 on fresh stores; run 2 on run 0's store, whose stored whole-world layers
+    // (base water included) it reads instead of computing them.
+    let layers = dir.path().join("store0/landscape/coast.layers");
+    let stamp = |p: &std::path::Path| {
+        let m = std::fs::metadata(p).unwrap();
+        (m.len(), m.modified().unwrap())
+    };
+    let mut stored = None;
+    for run in 0..3 {
         let s = crate::support::start(
             &["--config", cfg.to_str().unwrap()],
             &[],
-            &dir.path().join(format!("store{run}")),
+            &dir.path().join(format!("store{}", run % 2)),
         );
         // Every zoom-8 tile of the world (EXR and PNG) and a zoom-6 overview.
         let (_, tj) = terrasynth_test_support::process::get(&s, "/tiles/coast/water.json", None);
@@ -406,10 +420,22 @@ fn water_tiles_are_the_same_bytes_from_two_processes() {
             assert_eq!(status, 200, "{u}");
             got.push(body);
         }
+        if run == 0 {
+            // Stored by the background thread once computed.
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+            while !layers.exists() {
+                assert!(std::time::Instant::now() < deadline, "layers never stored");
+                std::thread::sleep(std::time::Duration::from_millis(100));
+            }
+            stored = Some(stamp(&layers));
+        }
         s.kill();
         bodies.push(got);
     }
     assert_eq!(bodies[0], bodies[1]);
+    assert_eq!(bodies[0], bodies[2]);
+    // Read, not computed and rewritten.
+    assert_eq!(Some(stamp(&layers)), stored);
     // The EXRs carry a `depth` channel, with water in some of them.
     let mut wet = 0;
     for b in bodies[0]
@@ -425,4 +451,67 @@ fn water_tiles_are_the_same_bytes_from_two_processes() {
         wet += depth.iter().filter(|&&d| d > 0.0).count();
     }
     assert!(wet > 1000, "{wet} wet pixels");
+}
+
+/// The whole-world layers of `world` as bits: upstream area and each species' densities of every
+/// tile of zooms 8 and 9, then the water tiles' depth and surface.
+fn landscape_bits(world: &World) -> Vec<u32> {
+    let mut out = Vec::new();
+    for z in 8..=9u8 {
+        for (x, y) in tiles(world, z) {
+            out.extend(
+                world
+                    .drainage_tile(z, x, y)
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.to_bits()),
+            );
+            for sp in world.vegetation_tile(z, x, y).unwrap().iter() {
+                out.extend(sp.iter().map(|v| v.to_bits()));
+            }
+            let (depth, surface) = world.water_tile(z, x, y).unwrap();
+            out.extend(depth.iter().chain(surface.iter()).map(|v| v.to_bits()));
+        }
+    }
+    out
+}
+
+#[test]
+fn whole_world_layers_read_back_from_their_file_are_the_computed_ones() {
+    let computed = lake_world();
+    let first = computed.restore_landscape(None, b"build 1").unwrap();
+    assert!(!first.loaded && first.refused.is_none());
+    let file = first
+        .to_store
+        .expect("computed layers come with their file");
+    let want = landscape_bits(&computed);
+
+    // The same world, later: read from the file (the base water with them), not computed.
+    let read = lake_world();
+    let r = read.restore_landscape(Some(&file), b"build 1").unwrap();
+    assert!(r.loaded && r.to_store.is_none() && r.refused.is_none());
+    assert_eq!(landscape_bits(&read), want);
+
+    // Another build, a damaged file, a file of another world: computed again, same layers.
+    let mut flipped = file.clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 1;
+    // The mini world without its lake: same window and species, other inputs.
+    let other = lake_world_with(Default::default())
+        .restore_landscape(None, b"build 1")
+        .unwrap()
+        .to_store
+        .unwrap();
+    for (bytes, build, why) in [
+        (&file, &b"build 2"[..], Refused::Key),
+        (&flipped, &b"build 1"[..], Refused::Checksum),
+        (&other, &b"build 1"[..], Refused::Key),
+    ] {
+        let again = lake_world();
+        let r = again.restore_landscape(Some(bytes), build).unwrap();
+        assert!(!r.loaded, "{why:?}");
+        assert_eq!(r.refused, Some(why));
+        assert!(r.to_store.is_some());
+        assert_eq!(landscape_bits(&again), want, "{why:?}");
+    }
 }

@@ -24,6 +24,7 @@
 //! | `aliases/{name}` | the id an alias points at (`exemplar.N`, `dictionary.N`, `world.N`; `world-…` for configured worlds' dictionaries) |
 //! | `jobs/{id}.json` | the record of a dictionary build or sketch job (rewritten atomically) |
 //! | `uploads/` | upload bodies being received (temporary, removed once decoded) |
+//! | `landscape/{world}.layers` | a world's whole-world landscape layers, a cache the server rewrites when its key (inputs and build) changes (`terrasynth_tiles::layer_file`) |
 //! | `corrupt/` | objects that failed verification, unreadable job records |
 
 pub mod budget;

@@ -850,6 +850,11 @@ impl Catalogue {
         };
         self.store.remove_alias(&alias)?;
         self.store.delete_object(ObjectKind::World, &id)?;
+        // Its whole-world layers are a cache of the deleted world; a failure leaves a file that
+        // a later world of the same name refuses (its key differs).
+        if let Err(e) = self.store.delete_landscape(name) {
+            tracing::warn!(world = %name, error = %e, "store: cannot delete the world's stored layers");
+        }
         Ok(())
     }
 }

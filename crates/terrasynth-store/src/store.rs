@@ -94,13 +94,14 @@ impl Stored {
     }
 }
 
-const SUBDIRS: [&str; 6] = [
+const SUBDIRS: [&str; 7] = [
     "dictionaries",
     "aliases",
     "exemplars",
     "worlds",
     "jobs",
     "uploads",
+    "landscape",
 ];
 
 /// Bytes read at a time when verifying an object.
@@ -536,6 +537,35 @@ impl Store {
         remove_durably(&self.dictionary_path(id)?)
     }
 
+    fn landscape_path(&self, world: &str) -> Result<PathBuf, StoreError> {
+        Ok(self
+            .dir
+            .join("landscape")
+            .join(format!("{}.layers", safe_name(world)?)))
+    }
+
+    /// The stored whole-world layers of world `world` (`landscape/{world}.layers`, written by
+    /// [`Store::put_landscape`]); `Ok(None)` when absent. A derived cache: the bytes carry their
+    /// own key and checksum, which the reader checks (`terrasynth_tiles::layer_file`).
+    pub fn get_landscape(&self, world: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        let path = self.landscape_path(world)?;
+        match std::fs::read(&path) {
+            Ok(bytes) => Ok(Some(bytes)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(io(&path)(e)),
+        }
+    }
+
+    /// Stores the whole-world layers of world `world` atomically, replacing earlier ones.
+    pub fn put_landscape(&self, world: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        write_atomically(&self.landscape_path(world)?, bytes)
+    }
+
+    /// Deletes the stored whole-world layers of world `world`; `false` when there were none.
+    pub fn delete_landscape(&self, world: &str) -> Result<bool, StoreError> {
+        remove_durably(&self.landscape_path(world)?)
+    }
+
     fn object_path(&self, kind: ObjectKind, id: &str) -> Result<PathBuf, StoreError> {
         Ok(self
             .dir
@@ -626,6 +656,36 @@ impl Store {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn landscape_layers_are_stored_replaced_and_deleted_by_world_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        assert_eq!(store.get_landscape("alps").unwrap(), None);
+        store.put_landscape("alps", b"first").unwrap();
+        store.put_landscape("alps", b"second").unwrap();
+        store.put_landscape("andes", b"other").unwrap();
+        assert_eq!(
+            store.get_landscape("alps").unwrap().as_deref(),
+            Some(&b"second"[..])
+        );
+        // An interrupted write's leftover goes at the next open; the stored copy stays.
+        let leftover = dir.path().join("landscape").join(".tmp-alps.layers-9-0");
+        std::fs::write(&leftover, b"part").unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        assert!(!leftover.exists());
+        assert!(store.delete_landscape("alps").unwrap());
+        assert!(!store.delete_landscape("alps").unwrap());
+        assert_eq!(store.get_landscape("alps").unwrap(), None);
+        assert_eq!(
+            store.get_landscape("andes").unwrap().as_deref(),
+            Some(&b"other"[..])
+        );
+        assert!(matches!(
+            store.put_landscape("../x", b"no"),
+            Err(StoreError::BadName(_))
+        ));
+    }
 
     #[test]
     fn atomic_write_leaves_no_temporary_and_open_cleans_leftovers() {

@@ -220,6 +220,18 @@ impl ElevationLevels {
             .clone()
     }
 
+    /// Sets the base water to `water`, read back from a layers file written from
+    /// [`ElevationLevels::base_water`]'s result for the same inputs
+    /// ([`crate::layer_file`]); no effect once it is known.
+    pub fn install_base_water(&self, water: Option<Arc<BaseWater>>) {
+        let _ = self.base_water.set(Ok(water));
+    }
+
+    /// The sea and lake settings the base water follows.
+    pub fn water_config(&self) -> &WaterConfig {
+        &self.water
+    }
+
     fn compute_base_water(&self) -> Result<Option<Arc<BaseWater>>, TileError> {
         if !self.water.may_have_water() {
             // No sea level and no lakes: dry everywhere, without looking at the whole world.

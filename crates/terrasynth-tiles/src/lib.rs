@@ -30,6 +30,7 @@ pub mod encode;
 pub mod error;
 pub mod extent;
 pub mod instances;
+pub mod layer_file;
 pub mod materials;
 pub mod mercator;
 pub mod point;
@@ -44,6 +45,7 @@ pub mod vegetation;
 pub mod water;
 pub mod world;
 
+pub use base_layers::Restored;
 pub use biomes::{BiomeWeights, WorldBiome};
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use chain::{Chain, DictionaryBand};
