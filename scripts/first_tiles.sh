@@ -16,8 +16,12 @@
 # Compare two builds by running it on each, alternating.
 #
 # Usage: scripts/first_tiles.sh [--bin PATH] [--store-dir DIR] [--port N] [--settle S]
+#                               [--no-stored-layers]
 #   --bin PATH        server binary (default target/release/terrasynth)
 #   --store-dir DIR   dictionary store reused between runs (default target/first-tiles-store)
+#   --no-stored-layers  remove the store's stored whole-world layers before every start (each
+#                     server computes them, as on its very first start; without it a server reads
+#                     those an earlier start of the same build stored)
 #   --port N          port on 127.0.0.1 (default 18095)
 #   --settle S        seconds between start and the elevation part's first request (default 8)
 set -euo pipefail
@@ -26,6 +30,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BIN="$ROOT/target/release/terrasynth"
 STORE_DIR="$ROOT/target/first-tiles-store"
+NO_STORED_LAYERS=""
 PORT=18095
 SETTLE=8
 
@@ -35,9 +40,10 @@ while [[ $# -gt 0 ]]; do
     case "$1" in
         --bin) need_value "$@"; BIN="$2"; shift 2 ;;
         --store-dir) need_value "$@"; STORE_DIR="$2"; shift 2 ;;
+        --no-stored-layers) NO_STORED_LAYERS=1; shift ;;
         --port) need_value "$@"; PORT="$2"; shift 2 ;;
         --settle) need_value "$@"; SETTLE="$2"; shift 2 ;;
-        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
         *) die "unknown argument '$1' (see --help)" ;;
     esac
 done
@@ -63,6 +69,7 @@ start_server() {
     if curl -s -o /dev/null --max-time 2 "$S/"; then
         die "something already listens on $S; pick another --port"
     fi
+    [[ -n "$NO_STORED_LAYERS" ]] && rm -rf "$STORE_DIR/landscape"
     (cd "$ROOT" && exec env TERRASYNTH_STORE_DIR="$STORE_DIR" TERRASYNTH_CACHE_MB=512 \
         "$BIN" serve --listen "127.0.0.1:$PORT") >"$LOG" 2>&1 &
     SERVER_PID=$!

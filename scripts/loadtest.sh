@@ -41,6 +41,8 @@
 #   --cache-mb N         TERRASYNTH_CACHE_MB for the servers (default: $TERRASYNTH_CACHE_MB, else the
 #                        config's cache_mb)
 #   --store-dir DIR      dictionary store reused between runs (default target/loadtest-store)
+#   --no-stored-layers   remove the store's stored whole-world layers (landscape/) before every
+#                        start, so that each fresh server computes them as on its very first start
 #   --request-timeout S  cap of one request in the cold replays (default 60)
 #   --replay-timeout S   cap of one whole replay with curl (default 600)
 #   --health-timeout S   how long to wait for /healthz after a start (default 300: the first
@@ -70,6 +72,7 @@ BIN=""
 CONFIG="$ROOT/config/default.toml"
 CACHE_MB="${TERRASYNTH_CACHE_MB:-}"
 STORE_DIR="$ROOT/target/loadtest-store"
+NO_STORED_LAYERS=""
 REQUEST_TIMEOUT=60
 REPLAY_TIMEOUT=600
 HEALTH_TIMEOUT=300
@@ -105,6 +108,7 @@ while [[ $# -gt 0 ]]; do
         --config) need_value "$@"; CONFIG="$2"; shift 2 ;;
         --cache-mb) need_value "$@"; CACHE_MB="$2"; shift 2 ;;
         --store-dir) need_value "$@"; STORE_DIR="$2"; shift 2 ;;
+        --no-stored-layers) NO_STORED_LAYERS=1; shift ;;
         --request-timeout) need_value "$@"; REQUEST_TIMEOUT="$2"; shift 2 ;;
         --replay-timeout) need_value "$@"; REPLAY_TIMEOUT="$2"; shift 2 ;;
         --health-timeout) need_value "$@"; HEALTH_TIMEOUT="$2"; shift 2 ;;
@@ -196,6 +200,7 @@ start_server() {
     local logfile="$WORK/server-$name.log"
     port_in_use && die "something already listens on $HOST:$PORT; pick another --port"
     log "starting server '$name' on $BASE (cache_mb=$CACHE_MB, store $STORE_DIR, log $logfile)"
+    [[ -n "$NO_STORED_LAYERS" ]] && rm -rf "$STORE_DIR/landscape"
     (
         cd "$ROOT"
         exec env TERRASYNTH_LISTEN="$HOST:$PORT" TERRASYNTH_CACHE_MB="$CACHE_MB" \
@@ -473,7 +478,13 @@ fi
     echo "- date: $(date -u '+%Y-%m-%d %H:%M:%S UTC'); commit $commit; $(nproc) CPUs; $(oha --version 2>/dev/null || echo oha)"
     echo "- server: \`$BIN\`, cache_mb=$CACHE_MB, listening on $HOST:$PORT"
     echo "- trace: $TRACE_DESC, $TRACE_N URLs, $(wc -l <"$TRACE_Z14") at zoom 14"
-    echo "- cold = freshly started server (empty tile caches; dictionary store reused from \`$STORE_DIR\`);"
+    if [[ -n "$NO_STORED_LAYERS" ]]; then
+        echo "- cold = freshly started server (empty tile caches; dictionary store reused from \`$STORE_DIR\`,"
+        echo "  its stored whole-world layers removed before each start: each server computes them);"
+    else
+        echo "- cold = freshly started server (empty tile caches; dictionary store reused from \`$STORE_DIR\`,"
+        echo "  with the whole-world layers an earlier start of this build stored, if any);"
+    fi
     echo "  c=1 = one request at a time over one connection (curl); warm oha: $oha_desc"
     echo "- peak RSS = VmHWM of the server process of that run (the first four rows share one server)"
     echo
