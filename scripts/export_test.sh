@@ -9,7 +9,9 @@
 #   - opens the MBTiles archives with Python's sqlite3: metadata (name, format, bounds, center,
 #     minzoom, maxzoom) and every tile (TMS row) equal to the served bytes;
 #   - exports two shards and joins them with `export merge`: the same tiles as the whole export;
-#   - kills an export (SIGKILL) while it runs: no file with the output's name is left.
+#   - kills an export (SIGKILL) while it runs: no file with the output's name is left;
+#   - the whole-world layers end up stored in the shared store (landscape/), which later exports
+#     read instead of computing them.
 # Usage: scripts/export_test.sh [--bin PATH] (default target/debug/terrasynth, built by
 # `cargo test`/`cargo build`; .ci/run runs it after the tests).
 set -euo pipefail
@@ -56,6 +58,10 @@ export_to() { # FORMAT OUTPUT [extra args]
 export_to pmtiles "$OUT/talas.pmtiles"
 export_to mbtiles "$OUT/talas.mbtiles"
 export_to pmtiles "$OUT/webp.pmtiles" --tile-format webp
+# The colour exports start from the whole-world layers the server (or the first export) stored;
+# every later export reads them (the archives' tiles are checked against the served ones below).
+[[ -s "$TERRASYNTH_STORE_DIR/landscape/tienshan.layers" ]] ||
+    { echo "export-test: the whole-world layers were not stored" >&2; exit 1; }
 # Leaf directories forced by a small root (the default keeps this export's root in 16 KiB).
 "$BIN" export --world tienshan --bbox "$BBOX" --zooms "$ZOOMS" --layers elevation \
     --format pmtiles --output "$OUT/leaves.pmtiles" --max-root-bytes 120 >/dev/null

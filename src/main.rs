@@ -363,6 +363,12 @@ fn run_export(a: ExportCli) -> Result<(), Failure> {
         let known: Vec<String> = state.live.snapshot().keys().cloned().collect();
         CliError::Usage(format!("no world `{name}` (known: {})", known.join(", ")))
     })?;
+    // Landscape layers start from the whole-world layers: read them from the store when an
+    // earlier run (a server, another shard) stored them, else compute and store them once.
+    let whole_world = |l: &String| !matches!(l.as_str(), "elevation" | "hillshade" | "contours");
+    if args.layers.iter().any(whole_world) {
+        terrasynth::server::worlds::prepare_landscape(&world, state.store().as_ref());
+    }
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("{spinner} {pos}/{len} tiles [{bar:40}] {per_sec} ETA {eta}")

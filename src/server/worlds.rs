@@ -442,7 +442,11 @@ pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
     }
 }
 
-fn prepare_landscape(world: &World, store: Option<&Store>) {
+/// Prepares `world`'s whole-world landscape layers now, on this thread, as
+/// [`prepare_landscapes`] does on its own: read from `store` when stored by this build for the
+/// same inputs, else computed and stored. For tools that need them before their first tile
+/// (`terrasynth export` of landscape layers: the shards of an export share one computation).
+pub fn prepare_landscape(world: &World, store: Option<&Store>) {
     let t = Instant::now();
     let name = world.name();
     let cache = store.zip(build_identity());
