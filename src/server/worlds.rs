@@ -23,8 +23,8 @@ use terrasynth_core::raster::{
 };
 use terrasynth_store::{ResolvedWorld, Store, Stored};
 use terrasynth_tiles::{
-    ControlMode, DictionaryBand, SpeciesControl, TileError, World, WorldBiome, WorldClasses,
-    WorldParts,
+    ControlMode, DictionaryBand, LayerStore, Obtained, SpeciesControl, TileError, World,
+    WorldBiome, WorldClasses, WorldParts,
 };
 
 use super::error::StartupError;
@@ -425,16 +425,18 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
 
 /// Prepares the whole-world landscape layers of `worlds` one after the other on a background
 /// thread, so that the first landscape tile of a world does not pay for them (a request that
-/// arrives first waits for the same computation). With a `store`, each world's layers are read
-/// from their stored copy when it was written by this build for the same inputs
-/// ([`World::restore_landscape`]; 1.5 s of computing for the default world), and stored after
-/// they are computed, so that the next start reads them.
+/// arrives first waits for the same computation). With a `store`, each world keeps its layers
+/// there ([`StoredLayers`], set before this returns, so that a request that starts them first
+/// uses it too): read at the next start instead of computed (1.5 s for the default world).
 pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
+    for world in &worlds {
+        keep_landscape(world, store.as_ref());
+    }
     let spawned = std::thread::Builder::new()
         .name("landscape-prepare".into())
         .spawn(move || {
             for world in worlds {
-                prepare_landscape(&world, store.as_ref());
+                prepare_landscape(&world, None);
             }
         });
     if let Err(e) = spawned {
@@ -442,59 +444,81 @@ pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
     }
 }
 
+/// Keeps `world`'s whole-world layers in `store` ([`StoredLayers`]); nothing without a store or
+/// when the running executable cannot be examined ([`build_identity`]).
+fn keep_landscape(world: &World, store: Option<&Store>) {
+    if let (Some(store), Some(build)) = (store, build_identity()) {
+        world.keep_landscape_in(Arc::new(StoredLayers {
+            store: store.clone(),
+            world: world.name().to_string(),
+            build,
+        }));
+    }
+}
+
 /// Prepares `world`'s whole-world landscape layers now, on this thread, as
-/// [`prepare_landscapes`] does on its own: read from `store` when stored by this build for the
-/// same inputs, else computed and stored. For tools that need them before their first tile
-/// (`terrasynth export` of landscape layers: the shards of an export share one computation).
+/// [`prepare_landscapes`] does on its own (kept in `store`, when given). For tools that need
+/// them before their first tile (`terrasynth export` of landscape layers: the shards of an
+/// export share one computation).
 pub fn prepare_landscape(world: &World, store: Option<&Store>) {
+    keep_landscape(world, store);
     let t = Instant::now();
-    let name = world.name();
-    let cache = store.zip(build_identity());
-    let restored = match cache {
-        Some((store, build)) => {
-            let stored = store.get_landscape(name).unwrap_or_else(|e| {
-                tracing::warn!(world = %name, error = %e, "world: cannot read the stored whole-world layers");
-                None
-            });
-            world
-                .restore_landscape(stored.as_deref(), build)
-                .map(|r| Some((store, r)))
-        }
-        None => world.prepare_landscape().map(|_| None),
-    };
-    let restored = match restored {
-        Ok(r) => r,
-        Err(e) => {
-            tracing::warn!(
-                world = %name,
-                error = %e,
-                "world: whole-world landscape layers failed; landscape tiles will answer errors"
-            );
-            return;
-        }
-    };
-    let mut how = "computed";
-    if let Some((store, r)) = restored {
-        if let Some(why) = r.refused {
-            tracing::info!(world = %name, reason = %why, "world: stored whole-world layers not used");
-        }
-        if r.loaded {
-            how = "read from the store";
-        }
-        if let Some(bytes) = r.to_store {
-            if let Err(e) = store.put_landscape(name, &bytes) {
-                tracing::warn!(world = %name, error = %e, "world: cannot store the whole-world layers");
-            }
+    match world.prepare_landscape() {
+        Ok(bytes) => tracing::info!(
+            world = %world.name(),
+            mib = bytes as f64 / f64::from(1u32 << 20),
+            seconds = t.elapsed().as_secs_f64(),
+            "world: whole-world landscape layers ready"
+        ),
+        Err(e) => tracing::warn!(
+            world = %world.name(),
+            error = %e,
+            "world: whole-world landscape layers failed; landscape tiles will answer errors"
+        ),
+    }
+}
+
+/// A world's whole-world layers in the store (`landscape/{world}.layers`).
+#[derive(Debug)]
+struct StoredLayers {
+    store: Store,
+    world: String,
+    build: &'static [u8],
+}
+
+impl LayerStore for StoredLayers {
+    fn load(&self) -> Option<Vec<u8>> {
+        self.store.get_landscape(&self.world).unwrap_or_else(|e| {
+            tracing::warn!(world = %self.world, error = %e, "world: cannot read the stored whole-world layers");
+            None
+        })
+    }
+
+    fn save(&self, file: &[u8]) {
+        if let Err(e) = self.store.put_landscape(&self.world, file) {
+            tracing::warn!(world = %self.world, error = %e, "world: cannot store the whole-world layers");
         }
     }
-    let mib = world.prepare_landscape().unwrap_or(0) as f64 / f64::from(1u32 << 20);
-    tracing::info!(
-        world = %name,
-        mib,
-        seconds = t.elapsed().as_secs_f64(),
-        how,
-        "world: whole-world landscape layers ready"
-    );
+
+    fn build(&self) -> &[u8] {
+        self.build
+    }
+
+    fn obtained(&self, how: Obtained) {
+        match how {
+            Obtained::Read => {
+                tracing::info!(world = %self.world, "world: whole-world layers read from the store")
+            }
+            Obtained::Computed => {
+                tracing::info!(world = %self.world, "world: whole-world layers computed and stored")
+            }
+            Obtained::Refused(why) => tracing::info!(
+                world = %self.world,
+                reason = %why,
+                "world: stored whole-world layers not used; computed and stored again"
+            ),
+        }
+    }
 }
 
 /// Stands for the code that computes the whole-world layers in the key of their stored copy:

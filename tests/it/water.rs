@@ -13,7 +13,7 @@ use ndarray::Array2;
 
 use terrasynth_core::synth::Window;
 use terrasynth_tiles::layer_file::Refused;
-use terrasynth_tiles::{parse_request, render, World};
+use terrasynth_tiles::{parse_request, render, LayerStore, Obtained, World};
 
 use terrasynth_test_support::{small_dictionary_with_vegetation, synthetic_terrain};
 
@@ -476,42 +476,88 @@ fn landscape_bits(world: &World) -> Vec<u32> {
     out
 }
 
+/// A [`LayerStore`] in memory: the file, the build, and how the layers were obtained.
+#[derive(Debug)]
+struct MemoryLayers {
+    file: std::sync::Mutex<Option<Vec<u8>>>,
+    build: &'static [u8],
+    obtained: std::sync::Mutex<Vec<Obtained>>,
+}
+
+impl MemoryLayers {
+    fn new(file: Option<Vec<u8>>, build: &'static [u8]) -> std::sync::Arc<Self> {
+        std::sync::Arc::new(MemoryLayers {
+            file: std::sync::Mutex::new(file),
+            build,
+            obtained: std::sync::Mutex::new(Vec::new()),
+        })
+    }
+    fn file(&self) -> Option<Vec<u8>> {
+        self.file.lock().unwrap().clone()
+    }
+    fn obtained(&self) -> Vec<Obtained> {
+        self.obtained.lock().unwrap().clone()
+    }
+}
+
+impl LayerStore for MemoryLayers {
+    fn load(&self) -> Option<Vec<u8>> {
+        self.file()
+    }
+    fn save(&self, file: &[u8]) {
+        *self.file.lock().unwrap() = Some(file.to_vec());
+    }
+    fn build(&self) -> &[u8] {
+        self.build
+    }
+    fn obtained(&self, how: Obtained) {
+        self.obtained.lock().unwrap().push(how);
+    }
+}
+
+/// `world` keeping its layers in `store`.
+fn kept_in(world: World, store: &std::sync::Arc<MemoryLayers>) -> World {
+    world.keep_landscape_in(store.clone());
+    world
+}
+
 #[test]
 fn whole_world_layers_read_back_from_their_file_are_the_computed_ones() {
-    let computed = lake_world();
-    let first = computed.restore_landscape(None, b"build 1").unwrap();
-    assert!(!first.loaded && first.refused.is_none());
-    let file = first
-        .to_store
-        .expect("computed layers come with their file");
-    let want = landscape_bits(&computed);
+    let want = landscape_bits(&lake_world());
+
+    // Computed (by the first tile that needs them) and stored.
+    let store = MemoryLayers::new(None, b"build 1");
+    assert_eq!(landscape_bits(&kept_in(lake_world(), &store)), want);
+    assert_eq!(store.obtained(), [Obtained::Computed]);
+    let file = store.file().expect("computed layers are stored");
 
     // The same world, later: read from the file (the base water with them), not computed.
-    let read = lake_world();
-    let r = read.restore_landscape(Some(&file), b"build 1").unwrap();
-    assert!(r.loaded && r.to_store.is_none() && r.refused.is_none());
-    assert_eq!(landscape_bits(&read), want);
+    let again = MemoryLayers::new(Some(file.clone()), b"build 1");
+    assert_eq!(landscape_bits(&kept_in(lake_world(), &again)), want);
+    assert_eq!(again.obtained(), [Obtained::Read]);
+    assert_eq!(again.file(), Some(file.clone()), "read, not rewritten");
 
-    // Another build, a damaged file, a file of another world: computed again, same layers.
+    // Another build, a damaged file, a file of another world: computed again, same layers,
+    // and stored again.
     let mut flipped = file.clone();
     let mid = flipped.len() / 2;
     flipped[mid] ^= 1;
     // The mini world without its lake: same window and species, other inputs.
-    let other = lake_world_with(Default::default())
-        .restore_landscape(None, b"build 1")
-        .unwrap()
-        .to_store
-        .unwrap();
+    let other = MemoryLayers::new(None, b"build 1");
+    let _ = landscape_bits(&kept_in(lake_world_with(Default::default()), &other));
+    let other = other.file().unwrap();
     for (bytes, build, why) in [
         (&file, &b"build 2"[..], Refused::Key),
         (&flipped, &b"build 1"[..], Refused::Checksum),
         (&other, &b"build 1"[..], Refused::Key),
     ] {
-        let again = lake_world();
-        let r = again.restore_landscape(Some(bytes), build).unwrap();
-        assert!(!r.loaded, "{why:?}");
-        assert_eq!(r.refused, Some(why));
-        assert!(r.to_store.is_some());
-        assert_eq!(landscape_bits(&again), want, "{why:?}");
+        let store = MemoryLayers::new(Some(bytes.clone()), build);
+        assert_eq!(
+            landscape_bits(&kept_in(lake_world(), &store)),
+            want,
+            "{why:?}"
+        );
+        assert_eq!(store.obtained(), [Obtained::Refused(why)]);
+        assert_ne!(store.file().as_ref(), Some(bytes), "{why:?}: stored again");
     }
 }

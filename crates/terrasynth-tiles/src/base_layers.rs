@@ -2,7 +2,9 @@
 //! whole base (upstream area in m², ending in the sea, nothing from outside the coverage), and the niche model with the seeding simulation for
 //! vegetation (then the world's painted species controls, [`crate::controls`]). Drainage is global by nature, so it is computed once per world on a fixed window
 //! of the native zoom's plane ([`crate::extent::Extent::world_window`]); the native-zoom tiles of
-//! drainage and vegetation are cut out of it.
+//! drainage and vegetation are cut out of it. A world given a [`LayerStore`] reads them from it
+//! instead when they were stored there for the same inputs by the same build, and stores them
+//! after computing them ([`crate::layer_file`]).
 
 use std::sync::{Arc, OnceLock};
 
@@ -71,14 +73,45 @@ fn cut_at(a: &Array2<f32>, aw: Window, w: Window, r: usize, c: usize) -> f32 {
     a.get((gr as usize, gc as usize)).copied().unwrap_or(0.0)
 }
 
+/// Where one world's whole-world layers are kept between runs, as files of
+/// [`crate::layer_file`] (the server's store). Whoever computes the layers first — the
+/// background thread at start or a request — reads them from here when the stored file fits,
+/// and stores them after computing them otherwise.
+pub trait LayerStore: Send + Sync + std::fmt::Debug {
+    /// The stored file, if any.
+    fn load(&self) -> Option<Vec<u8>>;
+    /// Stores `file` (failures are the store's to report: the layers are served either way).
+    fn save(&self, file: &[u8]);
+    /// Stands for the code that computes the layers: part of the file's key, so that another
+    /// build never reads this one's file.
+    fn build(&self) -> &[u8];
+    /// Told how the layers were obtained: read from the stored file, or computed (with why the
+    /// stored file was refused, when there was one).
+    fn obtained(&self, how: Obtained);
+}
+
+/// How the whole-world layers were obtained, for [`LayerStore::obtained`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Obtained {
+    /// Read from the stored file.
+    Read,
+    /// Computed: there was no stored file.
+    Computed,
+    /// Computed: the stored file was refused.
+    Refused(Refused),
+}
+
 /// The whole-world layers of a world, computed once on first use (or ahead of time by
-/// a background thread at start); concurrent users wait for the same computation.
+/// a background thread at start); concurrent users wait for the same computation. With a
+/// [`LayerStore`] ([`WholeWorld::keep_in`]) they are read from it instead when stored there
+/// for the same inputs by the same build.
 #[derive(Debug)]
 pub struct WholeWorld {
     landscape: Arc<LandscapeConfig>,
     classes: Arc<ClassWeights>,
     /// Painted controls of species densities ([`crate::controls`]).
     controls: SpeciesControls,
+    store: OnceLock<Arc<dyn LayerStore>>,
     layers: OnceLock<Result<Arc<BaseLayers>, TileError>>,
 }
 
@@ -94,89 +127,60 @@ impl WholeWorld {
             landscape,
             classes,
             controls,
+            store: OnceLock::new(),
             layers: OnceLock::new(),
         }
     }
 
-    /// The layers, computing them on first use. The computation is never cancelled (its result
-    /// is kept for ever, so an abandoned request must not leave a cancellation in its place).
+    /// Keeps the layers in `store` from now on (the first store given stays; no effect on
+    /// layers already obtained).
+    pub fn keep_in(&self, store: Arc<dyn LayerStore>) {
+        let _ = self.store.set(store);
+    }
+
+    /// The layers, read from the store or computed on first use. The computation is never
+    /// cancelled (its result is kept for ever, so an abandoned request must not leave a
+    /// cancellation in its place).
     pub fn get(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
         self.layers
-            .get_or_init(|| uncancellable(|| self.compute(elevation, None).map(|(l, _)| l)))
+            .get_or_init(|| uncancellable(|| self.obtain(elevation)))
             .clone()
     }
 
-    /// The layers as [`WholeWorld::get`] gives them, read from `stored` (a file of
-    /// [`crate::layer_file`]) when that file was written by the build `build` for exactly these
-    /// inputs, else computed; with the file to store when they were computed here. A file
-    /// refused for any reason costs only the time to check it. The base water stored with the
-    /// layers is installed into `elevation` too.
-    pub fn restore(
-        &self,
-        elevation: &ElevationLevels,
-        stored: Option<&[u8]>,
-        build: &[u8],
-    ) -> Result<Restored, TileError> {
-        let mut outcome = Outcome::Computed(None);
-        let layers = self
-            .layers
-            .get_or_init(|| {
-                uncancellable(|| {
-                    let (layers, how) = self.compute(elevation, Some((stored, build)))?;
-                    outcome = how;
-                    Ok(layers)
-                })
-            })
-            .clone()?;
-        let (loaded, to_store, refused) = match outcome {
-            Outcome::Loaded => (true, None, None),
-            Outcome::Computed(file) => (false, file, None),
-            Outcome::Refused(why, file) => (false, file, Some(why)),
-        };
-        Ok(Restored {
-            layers,
-            loaded,
-            to_store,
-            refused,
-        })
-    }
-
-    /// Computes the layers, or with `cache` (a stored file and the build) reads them from the
-    /// file when its key is that of the inputs.
-    fn compute(
-        &self,
-        elevation: &ElevationLevels,
-        cache: Option<(Option<&[u8]>, &[u8])>,
-    ) -> Result<(Arc<BaseLayers>, Outcome), TileError> {
+    /// Reads the layers from the store when its file's key is that of the inputs and this
+    /// build, else computes them (and stores them).
+    fn obtain(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
         let inputs = gather(elevation, &self.landscape, &self.classes)?;
-        let species = self.landscape.species.len();
-        let key = cache.map(|(_, build)| inputs_key(&inputs, elevation, &self.landscape, build));
-        let mut refused = None;
-        if let (Some(key), Some((Some(bytes), _))) = (&key, cache) {
-            match layer_file::decode(bytes, key, inputs.window, species) {
-                Ok(file) => {
-                    elevation.install_base_water(file.water.map(Arc::new));
-                    let layers = BaseLayers {
-                        window: file.window,
-                        area: file.area,
-                        vegetation: file.vegetation,
-                    };
-                    return Ok((self.finish(inputs.z, layers), Outcome::Loaded));
+        let store = self.store.get();
+        let key = store.map(|s| inputs_key(&inputs, elevation, &self.landscape, s.build()));
+        let mut how = Obtained::Computed;
+        if let (Some(store), Some(key)) = (store, &key) {
+            if let Some(bytes) = store.load() {
+                let species = self.landscape.species.len();
+                match layer_file::decode(&bytes, key, inputs.window, species) {
+                    Ok(file) => {
+                        drop(bytes);
+                        elevation.install_base_water(file.water.map(Arc::new));
+                        let layers = BaseLayers {
+                            window: file.window,
+                            area: file.area,
+                            vegetation: file.vegetation,
+                        };
+                        store.obtained(Obtained::Read);
+                        return Ok(self.finish(inputs.z, layers));
+                    }
+                    Err(why) => how = Obtained::Refused(why),
                 }
-                Err(why) => refused = Some(why),
             }
         }
         let water = elevation.base_water()?;
         let layers = derive(&inputs, water.as_deref(), &self.landscape);
-        let file = key.map(|k| {
+        if let (Some(store), Some(key)) = (store, &key) {
             let (w, area, veg) = (layers.window, &layers.area, &layers.vegetation);
-            layer_file::encode(&k, w, area, veg, water.as_deref())
-        });
-        let how = match refused {
-            Some(why) => Outcome::Refused(why, file),
-            None => Outcome::Computed(file),
-        };
-        Ok((self.finish(inputs.z, layers), how))
+            store.save(&layer_file::encode(key, w, area, veg, water.as_deref()));
+            store.obtained(how);
+        }
+        Ok(self.finish(inputs.z, layers))
     }
 
     /// The layers with the painted species controls applied.
@@ -185,29 +189,6 @@ impl WholeWorld {
             .apply(z, layers.window, &mut layers.vegetation);
         Arc::new(layers)
     }
-}
-
-/// How [`WholeWorld::restore`] came by the layers.
-enum Outcome {
-    /// Read from the stored file.
-    Loaded,
-    /// Computed (no file given, or the layers were there already), with the file to store.
-    Computed(Option<Vec<u8>>),
-    /// Computed because the stored file was refused, with the file to store.
-    Refused(Refused, Option<Vec<u8>>),
-}
-
-/// What [`WholeWorld::restore`] did.
-#[derive(Debug)]
-pub struct Restored {
-    /// The layers.
-    pub layers: Arc<BaseLayers>,
-    /// Whether they were read from the stored file.
-    pub loaded: bool,
-    /// The file to store, when they were computed by this call.
-    pub to_store: Option<Vec<u8>>,
-    /// Why the stored file was not used, when one was given and refused.
-    pub refused: Option<Refused>,
 }
 
 /// What the whole-world layers are computed from, besides the landscape and the classes'

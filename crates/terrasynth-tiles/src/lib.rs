@@ -45,7 +45,7 @@ pub mod vegetation;
 pub mod water;
 pub mod world;
 
-pub use base_layers::Restored;
+pub use base_layers::{LayerStore, Obtained};
 pub use biomes::{BiomeWeights, WorldBiome};
 pub use cancel::{run_cancellable, uncancellable, CancelOnDrop, CancelToken, Flights};
 pub use chain::{Chain, DictionaryBand};

@@ -24,7 +24,7 @@ use terrasynth_core::synth::{
     check_bands, Amplifier, AnyAmplifier, GradientAmplifier, Levers, SynthError, Window, ZoomBand,
 };
 
-use crate::base_layers::{base_layer_bytes, Restored, WholeWorld};
+use crate::base_layers::{base_layer_bytes, LayerStore, WholeWorld};
 use crate::biomes::{BiomeWeights, Biomes, WorldBiome};
 use crate::chain::{Chain, DictionaryBand};
 use crate::classes::{ClassWeights, WorldClasses};
@@ -676,16 +676,12 @@ impl World {
         })
     }
 
-    /// [`World::prepare_landscape`] from a stored copy: reads the layers from `stored` (a file
-    /// of [`crate::layer_file`]) when it was written by the build `build` for exactly this
-    /// world's inputs, else computes them and hands back the file to store
-    /// ([`Restored::to_store`]). The same layers either way, bit for bit.
-    pub fn restore_landscape(
-        &self,
-        stored: Option<&[u8]>,
-        build: &[u8],
-    ) -> Result<Restored, TileError> {
-        self.whole.restore(&self.elevation, stored, build)
+    /// Keeps this world's whole-world layers in `store` between runs: whoever computes them
+    /// first reads them from it when stored there for the same inputs by the same build, and
+    /// stores them after computing them otherwise (the same layers either way, bit for bit).
+    /// Set it before the first landscape tile; the first store given stays.
+    pub fn keep_landscape_in(&self, store: Arc<dyn LayerStore>) {
+        self.whole.keep_in(store);
     }
 
     /// The drainage tile `(z, x, y)`: upstream area in m² (after [`World::check_tile`]).
