@@ -102,8 +102,7 @@ impl CoverageLevels {
                 self.tile(base, extent, z + 1, cx, cy).map(Some)
             });
         }
-        let mask =
-            mercator_mask_from_grid(base, self.valid.as_ref(), z, w.col0, w.row0, w.cols, w.rows);
+        let mask = mercator_mask_from_grid(base, self.valid.as_ref(), z, w);
         Ok(mask.mapv(|m| if m { 1.0 } else { 0.0 }))
     }
 }

@@ -304,16 +304,8 @@ impl ElevationLevels {
         let zb = self.extent.z_base;
         if z == zb {
             // The base's validity is read once (with the coverage levels), not per tile.
-            let (values, _) = mercator_window_from_valid_grid(
-                &self.base,
-                self.coverage.base_validity(),
-                z,
-                w.col0,
-                w.row0,
-                w.cols,
-                w.rows,
-                self.fill_m,
-            );
+            let valid = self.coverage.base_validity();
+            let (values, _) = mercator_window_from_valid_grid(&self.base, valid, z, w, self.fill_m);
             return Ok(values);
         }
         if z < zb {

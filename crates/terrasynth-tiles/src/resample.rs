@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use terrasynth_core::raster::georef::{Crs, MERCATOR_RADIUS_M};
 use terrasynth_core::raster::grid::Grid;
+use terrasynth_core::synth::Window;
 
 use super::mercator::{mercator_to_lonlat, pixel_size_m};
 
@@ -87,29 +88,27 @@ pub fn mercator_window_from_grid(
     fill: f32,
 ) -> (Array2<f32>, Array2<bool>) {
     let valid = source_validity(grid);
-    mercator_window_from_valid_grid(grid, valid.as_ref(), z, col0, row0, cols, rows, fill)
+    let w = Window::new(col0, row0, cols, rows);
+    mercator_window_from_valid_grid(grid, valid.as_ref(), z, w, fill)
 }
 
 /// [`mercator_window_from_grid`] with the grid's validity given: `valid` must be
-/// [`source_validity`]`(grid)`.
-#[allow(clippy::too_many_arguments)]
+/// [`source_validity`]`(grid)`; `w` is the window of zoom `z`'s pixel plane.
 pub fn mercator_window_from_valid_grid(
     grid: &Grid,
     valid: Option<&Array2<bool>>,
     z: u8,
-    col0: i64,
-    row0: i64,
-    cols: usize,
-    rows: usize,
+    w: Window,
     fill: f32,
 ) -> (Array2<f32>, Array2<bool>) {
+    let Window { cols, rows, .. } = w;
     let mut values = Array2::from_elem((rows, cols), fill);
     let mut mask = Array2::from_elem((rows, cols), false);
     let (src_rows, src_cols) = grid.data.dim();
     if src_rows == 0 || src_cols == 0 || rows == 0 || cols == 0 {
         return (values, mask);
     }
-    let (row_taps, col_taps) = taps(grid, z, col0, row0, cols, rows);
+    let (row_taps, col_taps) = taps(grid, z, w);
     let data = &grid.data;
 
     let (Some(value_rows), Some(mask_rows)) = (values.as_slice_mut(), mask.as_slice_mut()) else {
@@ -171,14 +170,13 @@ pub fn mercator_window_from_valid_grid(
 
 /// The source taps of the rows and of the columns of a window (see
 /// [`mercator_window_from_grid`]): `(row_taps, col_taps)`, `None` outside the source.
-fn taps(
-    grid: &Grid,
-    z: u8,
-    col0: i64,
-    row0: i64,
-    cols: usize,
-    rows: usize,
-) -> (Vec<Option<Tap>>, Vec<Option<Tap>>) {
+fn taps(grid: &Grid, z: u8, w: Window) -> (Vec<Option<Tap>>, Vec<Option<Tap>>) {
+    let Window {
+        col0,
+        row0,
+        cols,
+        rows,
+    } = w;
     let (src_rows, src_cols) = grid.data.dim();
     let g = &grid.georef;
     let m = pixel_size_m(z);
@@ -239,17 +237,15 @@ pub fn mercator_mask_from_grid(
     grid: &Grid,
     valid: Option<&Array2<bool>>,
     z: u8,
-    col0: i64,
-    row0: i64,
-    cols: usize,
-    rows: usize,
+    w: Window,
 ) -> Array2<bool> {
+    let Window { cols, rows, .. } = w;
     let mut mask = Array2::from_elem((rows, cols), false);
     let (src_rows, src_cols) = grid.data.dim();
     if src_rows == 0 || src_cols == 0 || rows == 0 || cols == 0 {
         return mask;
     }
-    let (row_taps, col_taps) = taps(grid, z, col0, row0, cols, rows);
+    let (row_taps, col_taps) = taps(grid, z, w);
     let Some(mask_rows) = mask.as_slice_mut() else {
         return mask;
     };
@@ -455,7 +451,8 @@ mod tests {
             let (c0, r0) = (x0.floor() as i64, y0.floor() as i64);
             let (cols, rows) = ((x1 - x0) as usize + 2, (y1 - y0) as usize + 2);
             let (_, want) = mercator_window_from_grid(&grid, z, c0, r0, cols, rows, 0.0);
-            let got = mercator_mask_from_grid(&grid, v.as_ref(), z, c0, r0, cols, rows);
+            let window = Window::new(c0, r0, cols, rows);
+            let got = mercator_mask_from_grid(&grid, v.as_ref(), z, window);
             assert_eq!(got, want, "zoom {z}");
             assert!(
                 want.iter().any(|&b| b) && want.iter().any(|&b| !b),

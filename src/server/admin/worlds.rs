@@ -77,7 +77,7 @@ pub async fn post_world(
         Ok((world, id, def))
     })
     .await?;
-    prepare_landscapes(vec![world.clone()], Some(admin.catalogue.store().clone()));
+    prepare_landscapes(vec![world.clone()], state.store());
     tracing::info!(world = %def.name, id = %id, "world created");
     let body = WorldCreated {
         id,
@@ -122,14 +122,14 @@ pub async fn post_sketch_world(
         Arc::new(move |name: &str| live.get(name).is_some())
     };
     let cache_bytes = admin.cache_bytes;
-    let store = admin.catalogue.store().clone();
+    let store = state.store();
     let assemble: Assemble = Box::new(move |resolved| {
         let world = world_from(resolved, cache_bytes)
             .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))?;
         let world = Arc::new(world);
         let publish: Publish = Box::new(move || {
             live.insert(world.clone());
-            prepare_landscapes(vec![world], Some(store));
+            prepare_landscapes(vec![world], store);
         });
         Ok(publish)
     });
