@@ -21,11 +21,18 @@
 //!   would have been the goal) the channel is the straight grade
 //!   `t_i = z_q − (z_q − z(c_n))·i/n` for `0 < i < n`; the goal keeps its value. When `f32` has no
 //!   room for a strictly descending grade (a goal a few ulps below the pit), the pit is left;
+//! - with [`BreachRule::corner_depth`] `d > 0`, the channel of a pit whose neighbourhood rises
+//!   [`BreachRule::corner_rise`] or more also lowers, at each diagonal step from `c_{i−1}` to
+//!   `c_i`, each of the two cells the step passes between that lies above `c_{i−1}`'s channel
+//!   value `t` (`z_q` for the first step): to `z − (z − t)·d`. A one-cell trench along a
+//!   diagonal is `1/√2` of a cell wide across its axis, sharper than along a pixel axis, and
+//!   puts its high-frequency power in the spectrum's diagonal wedges; the corners widen it
+//!   symmetrically (an ablation lever: README, *Corners and block means*);
 //! - the result is `min(z, every channel through the cell)`.
 //!
 //! Every lowered cell then has a strictly lower neighbour (the next cell of the channel that
-//! gives it its value, or the goal), and cells not lowered keep theirs, so no pit is created and
-//! every pit whose search succeeds drains.
+//! gives it its value, or the goal; a corner cell's is `c_i`, below `t`), and cells not lowered
+//! keep theirs, so no pit is created and every pit whose search succeeds drains.
 
 use std::cmp::Ordering;
 
@@ -54,6 +61,12 @@ pub struct BreachRule {
     /// Weigh each step's carve depth by its length (the trench's volume): channels cost the same
     /// per metre in every direction. Off: the depth alone, per cell, whatever the step's length.
     pub volume: bool,
+    /// Share (0–1) of the way down to the channel that the two corner cells of each diagonal
+    /// step go (module docs); 0: channels are one D8 path wide.
+    pub corner_depth: f32,
+    /// Rise (same unit as the surface) within [`RISE_REACH`] cells of a pit from which its
+    /// channel gets corners.
+    pub corner_rise: f32,
 }
 
 impl BreachRule {
@@ -64,17 +77,15 @@ impl BreachRule {
             flat_radius: radius,
             steep_rise: 0.0,
             volume: true,
+            corner_depth: 0.0,
+            corner_rise: f32::INFINITY,
         }
     }
 
-    /// The reach of pit `(r, c)` of value `zq` (at least [`RISE_REACH`] cells from every edge),
-    /// and whether its search can be skipped: a reach of at most [`RISE_REACH`] cells with no
-    /// cell strictly below `zq` within [`RISE_REACH`] finds no goal (every cell of the box is
-    /// reachable), so its search would leave the pit as it is.
-    fn reach(&self, z: &[f32], cols: usize, r: usize, c: usize, zq: f32) -> (usize, bool) {
-        if self.flat_radius >= self.radius {
-            return (self.radius, false);
-        }
+    /// The highest value within [`RISE_REACH`] of pit `(r, c)` of value `zq` (at least
+    /// [`RISE_REACH`] cells from every edge; NaN cells ignored), and whether a cell there is
+    /// strictly below `zq`.
+    fn neighbourhood(z: &[f32], cols: usize, r: usize, c: usize, zq: f32) -> (f32, bool) {
         let k = RISE_REACH;
         let (mut top, mut lower) = (zq, false);
         for rr in r - k..=r + k {
@@ -83,12 +94,37 @@ impl BreachRule {
                 lower |= v < zq;
             }
         }
-        let reach = if top - zq >= self.steep_rise {
+        (top, lower)
+    }
+
+    /// The reach of pit `(r, c)` of value `zq` (at least [`RISE_REACH`] cells from every edge),
+    /// whether its search can be skipped: a reach of at most [`RISE_REACH`] cells with no
+    /// cell strictly below `zq` within [`RISE_REACH`] finds no goal (every cell of the box is
+    /// reachable), so its search would leave the pit as it is; and the corner depth of its
+    /// channel: [`BreachRule::corner_depth`] when its neighbourhood rises
+    /// [`BreachRule::corner_rise`] above it, 0 otherwise.
+    fn plan(&self, z: &[f32], cols: usize, r: usize, c: usize, zq: f32) -> (usize, bool, f32) {
+        let by_rise = self.flat_radius < self.radius;
+        let corners = self.corner_depth > 0.0;
+        if !by_rise && !corners {
+            return (self.radius, false, 0.0);
+        }
+        let (top, lower) = Self::neighbourhood(z, cols, r, c, zq);
+        let rise = top - zq;
+        let corner = if corners && rise >= self.corner_rise {
+            self.corner_depth
+        } else {
+            0.0
+        };
+        if !by_rise {
+            return (self.radius, false, corner);
+        }
+        let reach = if rise >= self.steep_rise {
             self.radius
         } else {
             self.flat_radius
         };
-        (reach, reach <= k && !lower)
+        (reach, reach <= RISE_REACH && !lower, corner)
     }
 }
 
@@ -253,7 +289,14 @@ impl Search {
     /// `radius` cells from every edge), appended to `out` if a strictly lower cell lies within
     /// the radius (and `f32` holds a descending grade to it); `out` is left as it was otherwise.
     /// The box's frame of sentinels bounds the search, so its loop tests no coordinates.
-    fn channel(&mut self, z: &[f32], cols: usize, (r, c): (usize, usize), out: &mut Channel) {
+    fn channel(
+        &mut self,
+        z: &[f32],
+        cols: usize,
+        (r, c): (usize, usize),
+        corner_depth: f32,
+        out: &mut Channel,
+    ) {
         let (side, radius) = (self.side, self.radius);
         if self.generation >= u32::MAX - 1 {
             // Stamps would collide with the sentinels: start afresh.
@@ -320,31 +363,63 @@ impl Search {
             cur = self.pred[cur] as usize;
         }
         path.reverse();
-        profile(z, cols, zq, path, out);
+        profile(z, cols, zq, (r, c), path, corner_depth, out);
     }
 }
 
 /// The straight, strictly descending channel values of the cells of `path` before its end (the
-/// path starts next to a pit of value `zq` and ends at a strictly lower cell, which keeps its
-/// value), appended to `out`; nothing is appended when `f32` cannot hold a strictly descending
-/// grade between them.
-fn profile(z: &[f32], cols: usize, zq: f32, path: &[(usize, usize)], out: &mut Channel) {
-    let Some((&end, inner)) = path.split_last() else {
+/// path starts next to `pit`, of value `zq`, and ends at a strictly lower cell, which keeps its
+/// value), and with `corner_depth > 0` the corner cells of its diagonal steps (module docs),
+/// appended to `out`; nothing is appended when `f32` cannot hold a strictly descending grade
+/// between them.
+fn profile(
+    z: &[f32],
+    cols: usize,
+    zq: f32,
+    pit: (usize, usize),
+    path: &[(usize, usize)],
+    corner_depth: f32,
+    out: &mut Channel,
+) {
+    let Some(&end) = path.last() else {
         return;
     };
     let zn = z[end.0 * cols + end.1];
     let n = path.len() as f64;
     let drop = f64::from(zq) - f64::from(zn);
-    let mut prev = zq;
+    let (mut prev, mut from) = (zq, pit);
     let len = out.len();
-    for (i, &p) in inner.iter().enumerate() {
-        let t = (f64::from(zq) - drop * (i + 1) as f64 / n) as f32;
-        if !(t < prev && t > zn) {
+    for (i, &p) in path.iter().enumerate() {
+        let last = i + 1 == path.len();
+        let t = if last {
+            zn
+        } else {
+            (f64::from(zq) - drop * (i + 1) as f64 / n) as f32
+        };
+        let descends = t < prev && t > zn;
+        if !last && !descends {
             out.truncate(len);
             return;
         }
+        if corner_depth > 0.0 && p.0 != from.0 && p.1 != from.1 {
+            // The two cells the diagonal step passes between.
+            for k in [(from.0, p.1), (p.0, from.1)] {
+                let zk = z[k.0 * cols + k.1];
+                if zk > prev {
+                    let lowered = (f64::from(zk)
+                        - (f64::from(zk) - f64::from(prev)) * f64::from(corner_depth))
+                        as f32;
+                    if lowered < zk {
+                        out.push((k, lowered));
+                    }
+                }
+            }
+        }
+        if !last {
+            out.push((p, t));
+        }
         prev = t;
-        out.push((p, t));
+        from = p;
     }
 }
 
@@ -403,7 +478,7 @@ pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -
             |(steep, flat), task| {
                 let mut out = Channel::new();
                 for &(r, c) in task {
-                    let (reach, skip) = rule.reach(v, cols, r, c, v[r * cols + c]);
+                    let (reach, skip, corner) = rule.plan(v, cols, r, c, v[r * cols + c]);
                     if reach == 0 || skip {
                         continue;
                     }
@@ -412,7 +487,7 @@ pub fn breach_pits_with(z: &Array2<f32>, origin: (i64, i64), rule: BreachRule) -
                     } else {
                         flat.get_or_insert_with(|| Search::new(reach, rule.volume))
                     };
-                    search.channel(v, cols, (r, c), &mut out);
+                    search.channel(v, cols, (r, c), corner, &mut out);
                 }
                 out
             },
@@ -448,7 +523,8 @@ pub fn breach_pits_naive(z: &Array2<f32>, origin: (i64, i64), radius: usize) -> 
 }
 
 /// Reference implementation of [`breach_pits_with`]: as [`breach_pits_naive`], a pit's box
-/// being `flat_radius` wide when no cell within [`RISE_REACH`] of it rises `steep_rise` above it.
+/// being `flat_radius` wide when no cell within [`RISE_REACH`] of it rises `steep_rise` above it,
+/// its channel with corners when one rises `corner_rise` above it.
 pub fn breach_pits_naive_with(
     z: &Array2<f32>,
     origin: (i64, i64),
@@ -499,6 +575,13 @@ pub fn breach_pits_naive_with(
                     z[a] - zq >= rule.steep_rise
                 })
             });
+            let corners = (-k..=k).any(|dr| {
+                (-k..=k).any(|dc| {
+                    let a = ((r as isize + dr) as usize, (c as isize + dc) as usize);
+                    z[a] - zq >= rule.corner_rise
+                })
+            });
+            let corner_depth = if corners { rule.corner_depth } else { 0.0 };
             let reach = if steep || rule.flat_radius >= radius {
                 radius
             } else {
@@ -586,7 +669,7 @@ pub fn breach_pits_naive_with(
             let flat = z.as_standard_layout();
             let v = flat.as_slice().unwrap_or(&[]);
             let mut channel = Channel::new();
-            profile(v, cols, zq, &path, &mut channel);
+            profile(v, cols, zq, q, &path, corner_depth, &mut channel);
             for (p, t) in channel {
                 if t < out[p] {
                     out[p] = t;

@@ -7,6 +7,7 @@
 //! and NaN-containing grids never panic.
 //!
 //! - [`banks`]: V-shaped banks beside breached channels (an ablation lever; window-invariant).
+//! - [`block_means`]: part of the volume breaching carved given back to each parent cell.
 //! - [`breach`]: bounded, order-independent pit breaching (window-invariant).
 //! - [`contour`]: contour lines by marching squares (window-invariant crossings), joined.
 //! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
@@ -22,6 +23,7 @@
 //! - [`naive`]: slow reference implementations for tests.
 
 pub mod banks;
+pub mod block_means;
 pub mod breach;
 mod common;
 pub mod contour;

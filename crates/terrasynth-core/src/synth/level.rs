@@ -38,6 +38,7 @@ use super::kernel::{
 };
 pub use super::levers::{Levers, MAX_AMPLIFY_SPARSITY};
 use crate::analysis::banks::widen_channels;
+use crate::analysis::block_means::restore_block_means;
 use crate::analysis::breach::{breach_margin, breach_pits_with, BreachRule, RISE_REACH};
 use crate::dictionary::features::{centre_normalise_n, patch_mean_slope_n};
 use crate::dictionary::matching::{
@@ -513,11 +514,19 @@ impl Amplifier {
     /// cell per ring of [`Levers::banks`].
     fn conditioned_window(&self, out: Window) -> Window {
         let m = if self.levers.breach > 0 {
-            (breach_margin(self.levers.breach as usize) + self.levers.banks as usize) as i64
+            (breach_margin(self.levers.breach as usize)
+                + self.levers.banks as usize
+                + self.restore_margin()) as i64
         } else {
             0
         };
         out.grown(m)
+    }
+
+    /// The cells computed around the output for [`restore_block_means`]: one, so that every
+    /// parent cell touching the output is whole.
+    fn restore_margin(&self) -> usize {
+        usize::from(self.levers.restore > 0.0)
     }
 
     /// The parent window that [`Amplifier::amplify`] needs to compute output window `out`.
@@ -1057,12 +1066,14 @@ impl Amplifier {
                 flat_radius: (self.levers.breach_flat.min(self.levers.breach)) as usize,
                 steep_rise: self.levers.steep_slope * RISE_REACH as f32 * parent_cell_m / 2.0,
                 volume: self.levers.breach_volume,
+                corner_depth: self.levers.corner_depth,
+                corner_rise: self.levers.corner_slope * RISE_REACH as f32 * parent_cell_m / 2.0,
             };
             let carved = breach_pits_with(&raw, (ext.row0, ext.col0), rule);
-            if self.levers.banks > 0 {
+            let m = breach_margin(rule.radius);
+            let (rr, rc) = raw.dim();
+            let banked = if self.levers.banks > 0 {
                 // The raw values of the breaching's result, for the banks.
-                let m = breach_margin(rule.radius);
-                let (rr, rc) = raw.dim();
                 let raw_inner = raw.slice(s![m..rr - m, m..rc - m]).to_owned();
                 widen_channels(
                     &raw_inner,
@@ -1072,6 +1083,22 @@ impl Amplifier {
                 )
             } else {
                 carved
+            };
+            let rm = self.restore_margin();
+            if rm > 0 {
+                // Over the output and one more cell, so that its parent cells are whole.
+                let k = m + self.levers.banks as usize;
+                let mut restored = banked;
+                restore_block_means(
+                    raw.slice(s![k..rr - k, k..rc - k]),
+                    &mut restored,
+                    (ext.row0 + k as i64, ext.col0 + k as i64),
+                    self.levers.restore,
+                );
+                let (h, w) = restored.dim();
+                restored.slice(s![rm..h - rm, rm..w - rm]).to_owned()
+            } else {
+                banked
             }
         } else {
             raw

@@ -69,6 +69,21 @@ pub struct Levers {
     pub banks: u32,
     /// The share of a neighbour's carve depth a bank is lowered by.
     pub bank_share: f32,
+    /// Share of the way down to the channel that the two corner cells of each diagonal step of a
+    /// breached channel go ([`BreachRule::corner_depth`](crate::analysis::breach::BreachRule::corner_depth)),
+    /// for pits steeper than [`Levers::corner_slope`]: diagonal channels widen instead of
+    /// putting their power in the spectrum's diagonal wedges. 0: off (the served amplifier: on,
+    /// the held-out crops' anisotropy reaches their truths' but the served mosaics' rises above
+    /// 1.5; README, *Corners and block means*).
+    pub corner_depth: f32,
+    /// Slope (m/m, measured as [`Levers::steep_slope`]) of the pits whose channels get corners.
+    pub corner_slope: f32,
+    /// Share of the volume breaching carves out of each parent cell given back to the cells of
+    /// that parent cell it left alone
+    /// ([`restore_block_means`](crate::analysis::block_means::restore_block_means)): channels
+    /// pull their blocks' means below the parent's. 0: off (the served amplifier; README,
+    /// *Corners and block means*).
+    pub restore: f32,
     /// Slope (m/m) from a pit to the highest cell within
     /// [`RISE_REACH`](crate::analysis::breach::RISE_REACH) cells that makes the pit steep.
     pub steep_slope: f32,
@@ -136,6 +151,9 @@ impl Default for Levers {
             breach_volume: true,
             banks: 0,
             bank_share: 0.5,
+            corner_depth: 0.0,
+            corner_slope: 0.2,
+            restore: 0.0,
             steep_slope: 0.05,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
@@ -169,6 +187,9 @@ impl Levers {
             breach_volume: false,
             banks: 0,
             bank_share: 0.5,
+            corner_depth: 0.0,
+            corner_slope: 0.2,
+            restore: 0.0,
             steep_slope: 0.0,
             slope_mod: false,
             stripe_cap: f32::INFINITY,
@@ -189,7 +210,9 @@ impl Levers {
     /// low-pass), `sparsity=S` (0: the dictionary's), `diverse=K` (atoms a primitive chooses
     /// among), `within=T` (their score tolerance), `banks=N` (rings of banks beside breached
     /// channels), `share=F` (their share of the depth), `meank=K` (detail as the mean of the `K`
-    /// best matches').
+    /// best matches'), `corner=D` (corner depth of diagonal channel steps), `cornerslope=S`
+    /// (slope of the pits whose channels get them), `restore=F` (share of the carved volume
+    /// given back to each parent cell).
     pub fn parse(s: &str) -> Result<Levers, String> {
         let mut l = Levers::default();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -240,6 +263,9 @@ impl Levers {
                 "meank" => l.mean_k = num(0.0, MAX_AMPLIFY_SPARSITY as f64)? as u32,
                 "banks" => l.banks = num(0.0, 8.0)? as u32,
                 "share" => l.bank_share = num(0.0, 1.0)? as f32,
+                "corner" => l.corner_depth = num(0.0, 1.0)? as f32,
+                "cornerslope" => l.corner_slope = num(0.0, 10.0)? as f32,
+                "restore" => l.restore = num(0.0, 1.0)? as f32,
                 "flat" => l.breach_flat = num(0.0, 32.0)? as u32,
                 "steep" => l.steep_slope = num(0.0, 10.0)? as f32,
                 "diverse" => l.diversity = num(1.0, 64.0)? as u32,
@@ -279,6 +305,10 @@ mod tests {
         assert!(!Levers::parse("no-volume").unwrap().breach_volume);
         assert!(Levers::parse("base,volume").unwrap().breach_volume);
         assert!(Levers::parse("octave=5").is_err());
+        let c = Levers::parse("corner=0.3,cornerslope=0.1,restore=0.4").unwrap();
+        assert_eq!((c.corner_depth, c.corner_slope, c.restore), (0.3, 0.1, 0.4));
+        assert_eq!(Levers::parse("base").unwrap().corner_depth, 0.0);
+        assert!(Levers::parse("corner=1.5").is_err());
         assert_eq!(Levers::parse("stripes=0").unwrap().stripe_cap, 0.0);
         assert!(Levers::parse("stripes=off")
             .unwrap()

@@ -819,9 +819,16 @@ proptest! {
     #[test]
     fn breach_rule_matches_naive_and_is_window_invariant(
         rows in 14usize..30, cols in 14usize..30, radius in 2usize..5, flat in 0usize..3,
-        rise in 0.0f32..4.0, volume in any::<bool>(), seed in any::<u64>(), r0 in 0usize..4,
-        c0 in 0usize..4) {
-        let rule = BreachRule { radius, flat_radius: flat.min(radius), steep_rise: rise, volume };
+        rise in 0.0f32..4.0, volume in any::<bool>(), corner in prop_oneof![Just(0.0f32), 0.05f32..1.0],
+        corner_rise in 0.0f32..6.0, seed in any::<u64>(), r0 in 0usize..4, c0 in 0usize..4) {
+        let rule = BreachRule {
+            radius,
+            flat_radius: flat.min(radius),
+            steep_rise: rise,
+            volume,
+            corner_depth: corner,
+            corner_rise,
+        };
         let z = rough_terrain(rows, cols, seed);
         let fast = breach_pits_with(&z, (3, -4), rule);
         let slow = breach_pits_naive_with(&z, (3, -4), rule);
@@ -855,12 +862,15 @@ proptest! {
     }
 
     /// Breaching only lowers cells, and every pit of the result (away from the window's edge)
-    /// was already a pit: channels descend strictly, so they create none.
+    /// was already a pit: channels descend strictly, so they create none; nor do the corners
+    /// of their diagonal steps, which stay above the step's lower end.
     #[test]
-    fn breach_lowers_and_creates_no_pit(seed in any::<u64>(), radius in 1usize..5) {
+    fn breach_lowers_and_creates_no_pit(seed in any::<u64>(), radius in 1usize..5,
+                                        corner in prop_oneof![Just(0.0f32), 0.05f32..1.0]) {
         let z = rough_terrain(40, 40, seed);
         let m = breach_margin(radius);
-        let b = breach_pits(&z, (0, 0), radius);
+        let rule = BreachRule { corner_depth: corner, corner_rise: 0.0, ..BreachRule::uniform(radius) };
+        let b = breach_pits_with(&z, (0, 0), rule);
         let inner = z.slice(ndarray::s![m..40 - m, m..40 - m]).to_owned();
         prop_assert!(b.iter().zip(inner.iter()).all(|(x, y)| x <= y));
         let (rows, cols) = b.dim();
@@ -919,6 +929,17 @@ proptest! {
     }
 }
 
+/// [`breach_pits_with`] of `z` at origin `(0, 0)`, checked bit for bit against its reference.
+fn breach_checked(z: &Array2<f32>, rule: BreachRule) -> Array2<f32> {
+    let fast = breach_pits_with(z, (0, 0), rule);
+    let slow = breach_pits_naive_with(z, (0, 0), rule);
+    assert!(fast
+        .iter()
+        .zip(slow.iter())
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    fast
+}
+
 /// By volume, a channel costs the same per metre in every direction; by depth alone, a diagonal
 /// step carves √2 of channel for the price of one. A pit 10 m below a plateau with two lower
 /// cells: one 5 cells east (4 plateau cells to cut, 4 m of trench each 10 m deep), one 4 cells
@@ -932,17 +953,13 @@ fn breach_by_volume_takes_the_shorter_channel_not_the_diagonal() {
     z[[24, 24]] = 80.0; // 4 cells along the diagonal
     let m = breach_margin(6);
     let by = |volume| {
-        let rule = BreachRule {
-            volume,
-            ..BreachRule::uniform(6)
-        };
-        let fast = breach_pits_with(&z, (0, 0), rule);
-        let slow = breach_pits_naive_with(&z, (0, 0), rule);
-        assert!(fast
-            .iter()
-            .zip(slow.iter())
-            .all(|(a, b)| a.to_bits() == b.to_bits()));
-        fast
+        breach_checked(
+            &z,
+            BreachRule {
+                volume,
+                ..BreachRule::uniform(6)
+            },
+        )
     };
     let cut = |b: &Array2<f32>, cells: &[(usize, usize)]| {
         cells.iter().all(|&(r, c)| b[[r - m, c - m]] < 100.0)
@@ -955,6 +972,75 @@ fn breach_by_volume_takes_the_shorter_channel_not_the_diagonal() {
     assert!(cut(&depth, &diagonal) && !cut(&depth, &east));
     // Either way the channel descends from the pit to its goal.
     assert!(volume[[20 - m, 21 - m]] > volume[[20 - m, 24 - m]]);
+}
+
+/// A pit whose only outlet lies along the diagonal: the channel runs (21, 21), (22, 22),
+/// (23, 23) to the goal at (24, 24). With corners, each diagonal step from `(r, c)` to
+/// `(r + 1, c + 1)` also lowers the two cells it passes between, `(r, c + 1)` and `(r + 1, c)`,
+/// `corner_depth` of the way down to the channel value at the step's start; without, nothing
+/// beside the path moves. Pits whose neighbourhood rises less than `corner_rise` get no corners.
+#[test]
+fn breach_corners_widen_diagonal_channels_of_steep_pits() {
+    let mut z = Array2::from_shape_fn((40, 40), |(_, c)| 100.0 - 0.01 * c as f32);
+    z[[20, 20]] = 90.0; // the pit
+    z[[24, 24]] = 80.0; // its goal, 4 cells along the diagonal
+    for c in 0..40 {
+        // A ridge just north of the pit: its neighbourhood rises 40 m.
+        z[[19, c]] = 130.0;
+    }
+    let m = breach_margin(6);
+    let run = |corner_depth: f32, corner_rise: f32| {
+        breach_checked(
+            &z,
+            BreachRule {
+                corner_depth,
+                corner_rise,
+                ..BreachRule::uniform(6)
+            },
+        )
+    };
+    let at = |b: &Array2<f32>, r: usize, c: usize| b[[r - m, c - m]];
+    let plain = run(0.0, 0.0);
+    let path = [(21, 21), (22, 22), (23, 23)];
+    for (i, &(r, c)) in path.iter().enumerate() {
+        // The straight grade from 90 to 80 over four steps.
+        assert_eq!(at(&plain, r, c), 90.0 - 2.5 * (i + 1) as f32);
+    }
+    // Step i runs from (20 + i, 20 + i), where the channel stands at 90 − 2.5 i.
+    let corners: Vec<((usize, usize), f32)> = (0..4)
+        .flat_map(|i| {
+            let (r, t) = (20 + i, 90.0 - 2.5 * i as f32);
+            [((r, r + 1), t), ((r + 1, r), t)]
+        })
+        .collect();
+    for &((r, c), _) in &corners {
+        assert_eq!(
+            at(&plain, r, c),
+            z[[r, c]],
+            "no corner without corner_depth"
+        );
+    }
+    let wide = run(0.5, 20.0);
+    for &((r, c), t) in &corners {
+        let own = z[[r, c]];
+        let want = (f64::from(own) - (f64::from(own) - f64::from(t)) * 0.5) as f32;
+        assert_eq!(at(&wide, r, c), want, "corner ({r}, {c})");
+    }
+    for &(r, c) in &path {
+        assert_eq!(
+            at(&wide, r, c),
+            at(&plain, r, c),
+            "the channel itself is unchanged"
+        );
+    }
+    // Nothing else moves: the path, the corners, and the rest as it was.
+    let moved = wide
+        .indexed_iter()
+        .filter(|&((r, c), v)| *v != z[[r + m, c + m]])
+        .count();
+    assert_eq!(moved, path.len() + corners.len());
+    // The pit's neighbourhood rises 40 m (the ridge): a corner_rise above that leaves it plain.
+    assert_eq!(run(0.5, 50.0), plain);
 }
 
 #[test]
@@ -977,6 +1063,8 @@ fn breach_rule_leaves_flat_pits_and_cuts_steep_ones() {
         flat_radius: 0,
         steep_rise: 20.0,
         volume: true,
+        corner_depth: 0.0,
+        corner_rise: f32::INFINITY,
     };
     let m = breach_margin(8);
     let out = breach_pits_with(&z, (0, 0), rule);
@@ -1017,4 +1105,71 @@ fn breach_cuts_the_cheapest_rim_and_keeps_unreachable_pits() {
     let bd = breach_pits(&deep, (0, 0), 2);
     assert_eq!(bd, deep.slice(ndarray::s![4..17, 4..17]).to_owned());
     assert_eq!(breach_pits(&Array2::zeros((6, 6)), (0, 0), 2).len(), 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Block means given back after breaching
+// ---------------------------------------------------------------------------------------------
+
+use terrasynth_core::analysis::block_means::{restore_block_means, restore_block_means_naive};
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, .. ProptestConfig::default() })]
+
+    /// The block-by-block pass equals its per-cell reference bit for bit; it raises only cells
+    /// the breaching left, never a channel; with a share of 1 each whole block's sum returns to
+    /// the raw surface's (where the block kept a cell); and a sub-window gives the same values on
+    /// its whole blocks.
+    #[test]
+    fn block_means_match_naive_restore_and_are_window_invariant(seed in any::<u64>(),
+            share in 0.0f32..1.0, or in -5i64..5, oc in -5i64..5, r0 in 0usize..6, c0 in 0usize..6,
+            h in 4usize..20, w in 4usize..20) {
+        let z = rough_terrain(44, 44, seed);
+        let m = breach_margin(3);
+        let carved = breach_pits(&z, (or, oc), 3);
+        let raw = z.slice(ndarray::s![m..44 - m, m..44 - m]).to_owned();
+        let origin = (or + m as i64, oc + m as i64);
+        let mut fast = carved.clone();
+        restore_block_means(raw.view(), &mut fast, origin, share);
+        let slow = restore_block_means_naive(&raw, &carved, origin, share);
+        prop_assert!(fast.iter().zip(slow.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        for ((p, &f), (&c, &r)) in fast.indexed_iter().zip(carved.iter().zip(raw.iter())) {
+            if c < r {
+                prop_assert_eq!(f.to_bits(), c.to_bits(), "channel {:?} moved", p);
+            } else {
+                prop_assert!(f >= c, "{:?} lowered", p);
+            }
+        }
+        let mut full = carved.clone();
+        restore_block_means(raw.view(), &mut full, origin, 1.0);
+        let (rows, cols) = raw.dim();
+        let (fr, fc) = (origin.0.rem_euclid(2) as usize, origin.1.rem_euclid(2) as usize);
+        let mut restored_blocks = 0;
+        for r in (fr..rows - 1).step_by(2) {
+            for c in (fc..cols - 1).step_by(2) {
+                let cells = [(r, c), (r, c + 1), (r + 1, c), (r + 1, c + 1)];
+                let kept = cells.iter().any(|&p| carved[p] >= raw[p]);
+                if kept {
+                    let sum = |a: &Array2<f32>| cells.iter().map(|&p| f64::from(a[p])).sum::<f64>();
+                    prop_assert!((sum(&full) - sum(&raw)).abs() < 1e-3, "block ({}, {})", r, c);
+                    restored_blocks += usize::from(cells.iter().any(|&p| carved[p] < raw[p]));
+                }
+            }
+        }
+        // Rough terrain has channels, so some blocks are restored.
+        prop_assert!(restored_blocks > 0);
+        let (h, w) = (h.min(rows - r0), w.min(cols - c0));
+        let cut = |a: &Array2<f32>| a.slice(ndarray::s![r0..r0 + h, c0..c0 + w]).to_owned();
+        let mut part = cut(&carved);
+        let sub_origin = (origin.0 + r0 as i64, origin.1 + c0 as i64);
+        restore_block_means(cut(&raw).view(), &mut part, sub_origin, share);
+        for ((r, c), v) in part.indexed_iter() {
+            // Whole blocks of the sub-window: the block's first cell and its last inside it.
+            let (gr, gc) = (sub_origin.0 + r as i64, sub_origin.1 + c as i64);
+            let (br, bc) = (gr.div_euclid(2) * 2 - sub_origin.0, gc.div_euclid(2) * 2 - sub_origin.1);
+            if br >= 0 && bc >= 0 && br + 1 < h as i64 && bc + 1 < w as i64 {
+                prop_assert_eq!(v.to_bits(), fast[[r + r0, c + c0]].to_bits(), "({}, {})", r, c);
+            }
+        }
+    }
 }

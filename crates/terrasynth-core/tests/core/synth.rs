@@ -3,7 +3,9 @@
 
 use ndarray::{s, Array2};
 use proptest::prelude::*;
-use terrasynth_core::dictionary::MatchWeights;
+use std::sync::Arc;
+
+use terrasynth_core::dictionary::{Dictionary, MatchWeights};
 use terrasynth_core::synth::{
     amplify_chain, Amplifier, ClampedRaster, Field, KernelKind, Levers, SynthError, Window,
 };
@@ -124,29 +126,70 @@ fn lever_sets() -> Vec<Levers> {
             mean_k: 3,
             ..Levers::default()
         },
+        Levers {
+            corner_depth: 0.3,
+            corner_slope: 0.0,
+            restore: 0.2,
+            ..Levers::default()
+        },
     ]
+}
+
+/// Two amplification levels over `dict` with `levers` and the default match weights.
+fn two_levels(dict: &Arc<Dictionary>, levers: Levers) -> Vec<Amplifier> {
+    let w = MatchWeights::default();
+    (0..2)
+        .map(|_| {
+            Amplifier::new(dict.clone(), &w)
+                .unwrap()
+                .with_levers(levers)
+        })
+        .collect()
+}
+
+/// Two levels with `levers` over the window `(c0, r0, w, h)` equal the same cells of a larger
+/// window, bit for bit.
+fn check_window_invariant(
+    levers: Levers,
+    (c0, r0, w, h): (i64, i64, usize, usize),
+) -> Result<(), TestCaseError> {
+    let dict = small_dictionary(3);
+    let base = synthetic_terrain(72, 72, 5);
+    let src = ClampedRaster {
+        elevation: &base,
+        layers: vec![],
+    };
+    let amps = two_levels(&dict, levers);
+    let big = Window::new(-40, -40, 260, 260);
+    let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
+    let part_w = Window::new(c0, r0, w, h);
+    let part = amplify_chain(&amps, &src, part_w, 100.0).unwrap();
+    let expect = whole.crop(part_w).unwrap();
+    prop_assert!(
+        part.elevation
+            .iter()
+            .zip(expect.elevation.iter())
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "{:?}",
+        levers
+    );
+    Ok(())
 }
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 20, .. ProptestConfig::default() })]
 
     #[test]
-    fn every_lever_set_is_window_invariant(which in 0usize..14, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
-        let levers = lever_sets()[which];
-        let dict = small_dictionary(3);
-        let base = synthetic_terrain(72, 72, 5);
-        let src = ClampedRaster { elevation: &base, layers: vec![] };
-        let w8 = MatchWeights::default();
-        let amps = vec![
-            Amplifier::new(dict.clone(), &w8).unwrap().with_levers(levers),
-            Amplifier::new(dict.clone(), &w8).unwrap().with_levers(levers),
-        ];
-        let big = Window::new(-40, -40, 260, 260);
-        let whole = amplify_chain(&amps, &src, big, 100.0).unwrap();
-        let part_w = Window::new(c0, r0, w, h);
-        let part = amplify_chain(&amps, &src, part_w, 100.0).unwrap();
-        let expect = whole.crop(part_w).unwrap();
-        prop_assert!(part.elevation.iter().zip(expect.elevation.iter()).all(|(a, b)| a.to_bits() == b.to_bits()), "{:?}", levers);
+    fn every_lever_set_is_window_invariant(which in 0usize..15, c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
+        check_window_invariant(lever_sets()[which], (c0, r0, w, h))?;
+    }
+
+    /// Corners and block means (the last lever set) in every case: the block means need one
+    /// more cell around the output, whose parity follows the window's origin.
+    #[test]
+    fn corners_and_block_means_are_window_invariant(c0 in -30i64..150, r0 in -30i64..150, w in 1usize..60, h in 1usize..60) {
+        let sets = lever_sets();
+        check_window_invariant(sets[sets.len() - 1], (c0, r0, w, h))?;
     }
 }
 
@@ -167,15 +210,7 @@ fn every_lever_set_is_deterministic_across_threads_and_consistent() {
                     elevation: &base,
                     layers: vec![],
                 };
-                let w = MatchWeights::default();
-                let amps = vec![
-                    Amplifier::new(dict.clone(), &w)
-                        .unwrap()
-                        .with_levers(levers),
-                    Amplifier::new(dict.clone(), &w)
-                        .unwrap()
-                        .with_levers(levers),
-                ];
+                let amps = two_levels(&dict, levers);
                 amplify_chain(&amps, &src, Window::new(0, 0, 192, 192), 100.0).unwrap()
             })
         };
@@ -198,7 +233,8 @@ fn every_lever_set_is_deterministic_across_threads_and_consistent() {
 #[test]
 fn breaching_drains_the_pits_detail_opens() {
     // The same level with and without breaching: the breached one has far fewer closed
-    // depressions, and moves few cells.
+    // depressions, and moves few cells. Breaching alone only lowers cells; giving part of the
+    // carved volume back to each parent cell (`restore`) raises only cells it did not lower.
     let dict = small_dictionary(6);
     let base = synthetic_terrain(64, 64, 21);
     let src = ClampedRaster {
@@ -206,9 +242,10 @@ fn breaching_drains_the_pits_detail_opens() {
         layers: vec![],
     };
     let w = MatchWeights::default();
-    let run = |breach: u32| {
+    let run = |breach: u32, restore: f32| {
         let levers = Levers {
             breach,
+            restore,
             ..Levers::default()
         };
         let amps = vec![Amplifier::new(dict.clone(), &w)
@@ -216,14 +253,15 @@ fn breaching_drains_the_pits_detail_opens() {
             .with_levers(levers)];
         amplify_chain(&amps, &src, Window::new(0, 0, 128, 128), 100.0).unwrap()
     };
-    let open = run(0);
-    let drained = run(6);
-    let (f_open, f_drained) = (
-        terrasynth_core::analysis::flood_extent(&open.elevation),
-        terrasynth_core::analysis::flood_extent(&drained.elevation),
-    );
+    let open = run(0, 0.0);
+    let drained = run(6, 0.0);
+    let restored = run(6, 0.2);
+    let flood =
+        |f: &terrasynth_core::synth::Field| terrasynth_core::analysis::flood_extent(&f.elevation);
+    let (f_open, f_drained, f_restored) = (flood(&open), flood(&drained), flood(&restored));
     assert!(f_open > 1.0, "the unbreached level has pits: {f_open} %");
     assert!(f_drained < 0.5 * f_open, "{f_drained} % vs {f_open} %");
+    assert!(f_restored < 0.5 * f_open, "{f_restored} % vs {f_open} %");
     let moved = open
         .elevation
         .iter()
@@ -236,6 +274,19 @@ fn breaching_drains_the_pits_detail_opens() {
         .iter()
         .zip(open.elevation.iter())
         .all(|(d, o)| d <= o));
+    let (mut raised, mut crossed) = (0, 0);
+    for ((r, d), o) in restored
+        .elevation
+        .iter()
+        .zip(drained.elevation.iter())
+        .zip(open.elevation.iter())
+    {
+        raised += usize::from(r > d);
+        // A channel cell (lowered by the breaching) is never raised.
+        crossed += usize::from(d < o && r != d);
+    }
+    assert!(raised > 0, "restore raised nothing");
+    assert_eq!(crossed, 0, "restore moved channel cells");
 }
 
 // --- determinism across rayon thread counts ---

@@ -1,0 +1,97 @@
+//! Giving back part of the volume that breaching carves out of each parent cell.
+//!
+//! A level's output is consistent with its parent when every 2 × 2 block of children (one parent
+//! cell) averages to the parent's value. The correction passes make it so; breaching then
+//! lowers the cells of its channels and pulls their blocks' means down. [`restore_block_means`]
+//! raises the cells of each block that breaching left alone by `share` of the block's carved
+//! volume, shared equally among them. Channels keep their depth and grade, so the drainage they
+//! open stays open; a share below 1 keeps the raise small next to them.
+//!
+//! Blocks are the 2 × 2 cells whose global row and column start even. Only blocks wholly inside
+//! the arrays are touched; the cells of partial blocks along the edge keep their values, so the
+//! caller computes one cell more on every side and drops it: the result of every complete block
+//! depends on its four cells only, whatever the window.
+
+use ndarray::{Array2, ArrayView2};
+
+/// Raises the cells of `carved` (the breached surface; `raw` before breaching, same shape, cell
+/// `(0, 0)` at global `origin`) that are not below `raw`, block by block (module docs), by
+/// `share · Σ(raw − carved) / n`, the sum over the block's lowered cells and `n` its cells left
+/// alone. Blocks with no carved cell, or with every cell carved, are unchanged.
+pub fn restore_block_means(
+    raw: ArrayView2<'_, f32>,
+    carved: &mut Array2<f32>,
+    origin: (i64, i64),
+    share: f32,
+) {
+    let (rows, cols) = carved.dim();
+    if raw.dim() != (rows, cols) || share == 0.0 {
+        return;
+    }
+    let r_first = origin.0.rem_euclid(2) as usize;
+    let c_first = origin.1.rem_euclid(2) as usize;
+    for r in (r_first..rows.saturating_sub(1)).step_by(2) {
+        for c in (c_first..cols.saturating_sub(1)).step_by(2) {
+            let cells = [(r, c), (r, c + 1), (r + 1, c), (r + 1, c + 1)];
+            let (mut carved_volume, mut kept) = (0.0f32, 0u32);
+            let lowered = cells.map(|p| raw[p] - carved[p]);
+            let channel = lowered.map(|d| d > 0.0);
+            for (&d, &is_channel) in lowered.iter().zip(&channel) {
+                if is_channel {
+                    carved_volume += d;
+                } else {
+                    kept += 1;
+                }
+            }
+            if carved_volume > 0.0 && kept > 0 {
+                let raise = share * carved_volume / kept as f32;
+                for (&p, &is_channel) in cells.iter().zip(&channel) {
+                    if !is_channel {
+                        carved[p] += raise;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Reference implementation of [`restore_block_means`] for tests: each cell finds its block from
+/// its global coordinates and sums the block's four cells itself.
+pub fn restore_block_means_naive(
+    raw: &Array2<f32>,
+    carved: &Array2<f32>,
+    origin: (i64, i64),
+    share: f32,
+) -> Array2<f32> {
+    let (rows, cols) = carved.dim();
+    let global = |r: usize, c: usize| (origin.0 + r as i64, origin.1 + c as i64);
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let v = carved[[r, c]];
+        let (gr, gc) = global(r, c);
+        // The block's first cell, local.
+        let (br, bc) = (
+            gr.div_euclid(2) * 2 - origin.0,
+            gc.div_euclid(2) * 2 - origin.1,
+        );
+        if share == 0.0 || br < 0 || bc < 0 || br + 1 >= rows as i64 || bc + 1 >= cols as i64 {
+            return v;
+        }
+        let (br, bc) = (br as usize, bc as usize);
+        let lowered_by: Vec<f32> = [(br, bc), (br, bc + 1), (br + 1, bc), (br + 1, bc + 1)]
+            .iter()
+            .map(|&p| raw[p] - carved[p])
+            .collect();
+        let carved_volume = lowered_by
+            .iter()
+            .filter(|&&d| d > 0.0)
+            .fold(0.0f32, |a, &d| a + d);
+        let channels = lowered_by.iter().filter(|&&d| d > 0.0).count();
+        let kept = lowered_by.len() - channels;
+        let mine_is_channel = raw[[r, c]] - v > 0.0;
+        if carved_volume > 0.0 && kept > 0 && !mine_is_channel {
+            v + share * carved_volume / kept as f32
+        } else {
+            v
+        }
+    })
+}
