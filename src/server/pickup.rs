@@ -104,6 +104,7 @@ impl AppState {
             return Err(unknown(name));
         }
         let (live, owned, pickup) = (self.live.clone(), name.to_string(), self.pickup.clone());
+        let store = self.store();
         let found = blocking(move || {
             let catalogue = &admin.catalogue;
             let Some((id, def)) = catalogue.stored_world(&owned)? else {
@@ -114,7 +115,7 @@ impl AppState {
                 .map_err(ServerError::from)
                 .and_then(|r| world_from(r, admin.cache_bytes).map_err(ServerError::from))?;
             let world = Arc::new(world);
-            live.insert(world.clone());
+            live.publish(world.clone(), store.as_ref());
             pickup.served_from_store(&owned, &id);
             tracing::info!(world = %owned, id = %id, "world: picked up from the store");
             Ok(Some(world))
@@ -197,7 +198,7 @@ fn sync_once(state: &AppState) -> Result<Vec<Arc<World>>, ServerError> {
         match built {
             Ok(world) => {
                 let world = Arc::new(world);
-                state.live.insert(world.clone());
+                state.live.publish(world.clone(), state.store().as_ref());
                 state.pickup.served_from_store(name, &id_now);
                 tracing::info!(world = %name, id = %id_now, "world: loaded from the store by the sync");
                 added.push(world);

@@ -16,7 +16,7 @@ use super::admin::Admin;
 use super::error::{ServerError, StartupError};
 use super::metrics::Metrics;
 use super::pickup::Pickup;
-use super::worlds::Worlds;
+use super::worlds::{keep_landscape, Worlds};
 use crate::config::ServerConfig;
 
 /// Requests waiting for a synthesis slot, bounded: entering a full queue is [`ServerError::Busy`].
@@ -75,6 +75,14 @@ impl LiveWorlds {
     /// World `name`, if served.
     pub fn get(&self, name: &str) -> Option<Arc<World>> {
         self.snapshot().get(name).cloned()
+    }
+
+    /// Serves `world` (adding or replacing it) with its whole-world landscape layers kept in
+    /// `store` *before* any request can reach it, so that a request which starts them first
+    /// stores them too ([`keep_landscape`]).
+    pub fn publish(&self, world: Arc<World>, store: Option<&terrasynth_store::Store>) {
+        keep_landscape(&world, store);
+        self.insert(world);
     }
 
     /// Adds (or replaces) a world.

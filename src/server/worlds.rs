@@ -445,8 +445,9 @@ pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
 }
 
 /// Keeps `world`'s whole-world layers in `store` ([`StoredLayers`]); nothing without a store or
-/// when the running executable cannot be examined ([`build_identity`]).
-fn keep_landscape(world: &World, store: Option<&Store>) {
+/// when the running executable cannot be examined ([`build_identity`]). A world keeps the first
+/// store it is given.
+pub fn keep_landscape(world: &World, store: Option<&Store>) {
     if let (Some(store), Some(build)) = (store, build_identity()) {
         world.keep_landscape_in(Arc::new(StoredLayers {
             store: store.clone(),

@@ -56,6 +56,7 @@ pub async fn post_world(
     let def = WorldDefinition::from_request(request, catalogue.defaults())?;
     let live = state.live.clone();
     let cache_bytes = admin.cache_bytes;
+    let store = state.store();
     let (world, id, def) = blocking(move || {
         let (world, id) = catalogue.create_world(
             &def,
@@ -73,7 +74,7 @@ pub async fn post_world(
             },
         )?;
         let world = Arc::new(world);
-        live.insert(world.clone());
+        live.publish(world.clone(), store.as_ref());
         Ok((world, id, def))
     })
     .await?;
@@ -128,7 +129,7 @@ pub async fn post_sketch_world(
             .map_err(|e| ServiceError::Invalid(format!("cannot create the world: {e}")))?;
         let world = Arc::new(world);
         let publish: Publish = Box::new(move || {
-            live.insert(world.clone());
+            live.publish(world.clone(), store.as_ref());
             prepare_landscapes(vec![world], store);
         });
         Ok(publish)
