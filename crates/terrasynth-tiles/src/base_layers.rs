@@ -19,7 +19,7 @@ use crate::classes::ClassWeights;
 use crate::controls::SpeciesControls;
 use terrasynth_core::synth::Window;
 
-use crate::cancel::uncancellable;
+use crate::cancel::{join, uncancellable};
 use crate::elevation::{BaseWater, ElevationLevels, MAX_WORLD_PIXELS};
 use crate::error::TileError;
 use crate::layer_file::{self, Refused};
@@ -150,12 +150,20 @@ impl WholeWorld {
     /// Reads the layers from the store when its file's key is that of the inputs and this
     /// build, else computes them (and stores them).
     fn obtain(&self, elevation: &ElevationLevels) -> Result<Arc<BaseLayers>, TileError> {
-        let inputs = gather(elevation, &self.landscape, &self.classes)?;
         let store = self.store.get();
-        let key = store.map(|s| inputs_key(&inputs, elevation, &self.landscape, s.build()));
+        // The stored file is read while the inputs are gathered and hashed.
+        let (gathered, stored) = join(
+            || -> Result<_, TileError> {
+                let inputs = gather(elevation, &self.landscape, &self.classes)?;
+                let key = store.map(|s| inputs_key(&inputs, elevation, &self.landscape, s.build()));
+                Ok((inputs, key))
+            },
+            || store.and_then(|s| s.load()),
+        );
+        let (inputs, key) = gathered?;
         let mut how = Obtained::Computed;
         if let (Some(store), Some(key)) = (store, &key) {
-            if let Some(bytes) = store.load() {
+            if let Some(bytes) = stored {
                 let species = self.landscape.species.len();
                 match layer_file::decode(&bytes, key, inputs.window, species) {
                     Ok(file) => {
@@ -214,11 +222,13 @@ fn gather(
     if window.len() > MAX_WORLD_PIXELS {
         return Err(TileError::WorldTooLarge(window));
     }
-    let heights = elevation.window(z, window)?;
+    let (heights, coverage) = join(
+        || elevation.window(z, window),
+        || elevation.coverage_window(z, window),
+    );
+    let heights = heights?;
+    let covered = coverage?.mapv(|c| !crate::coverage::uncovered(c));
     let cells = extent.cell_sizes(z, window.row0, window.rows);
-    let covered = elevation
-        .coverage_window(z, window)?
-        .mapv(|c| !crate::coverage::uncovered(c));
     let class_weights = if landscape
         .species
         .iter()
@@ -247,39 +257,52 @@ fn inputs_key(
     landscape: &LandscapeConfig,
     build: &[u8],
 ) -> [u8; 32] {
-    let mut h = Sha256::new();
-    let mut field = |name: &str, bytes: &[u8]| {
-        h.update(name.as_bytes());
-        h.update((bytes.len() as u64).to_le_bytes());
-        h.update(bytes);
-    };
-    field("format", &layer_file::FORMAT_VERSION.to_le_bytes());
-    field("build", build);
+    let mut hasher = Sha256::new();
+    let h = &mut hasher;
+    field(h, "format", &layer_file::FORMAT_VERSION.to_le_bytes());
+    field(h, "build", build);
     let w = inputs.window;
-    field(
-        "window",
-        format!("{} {} {} {} {}", inputs.z, w.col0, w.row0, w.cols, w.rows).as_bytes(),
-    );
-    field("heights", &f32_bytes(inputs.heights.iter()));
+    let window = format!("{} {} {} {} {}", inputs.z, w.col0, w.row0, w.cols, w.rows);
+    field(h, "window", window.as_bytes());
+    f32_field(h, "heights", &inputs.heights);
     let covered: Vec<u8> = inputs.covered.iter().map(|&c| u8::from(c)).collect();
-    field("covered", &covered);
+    field(h, "covered", &covered);
     let cells: Vec<u8> = (inputs.cells.dx.iter().chain(&inputs.cells.dy))
         .flat_map(|v| v.to_le_bytes())
         .collect();
-    field("cells", &cells);
-    field(
-        "water",
-        format!("{:?}", elevation.water_config()).as_bytes(),
-    );
-    field("landscape", format!("{landscape:?}").as_bytes());
+    field(h, "cells", &cells);
+    let water = format!("{:?}", elevation.water_config());
+    field(h, "water", water.as_bytes());
+    field(h, "landscape", format!("{landscape:?}").as_bytes());
     for (name, g) in &inputs.class_weights {
-        field(&format!("class {name}"), &f32_bytes(g.iter()));
+        f32_field(h, &format!("class {name}"), g);
     }
-    h.finalize().into()
+    hasher.finalize().into()
 }
 
-fn f32_bytes<'a>(values: impl Iterator<Item = &'a f32>) -> Vec<u8> {
-    values.flat_map(|v| v.to_le_bytes()).collect()
+/// Hashes one named field of the key: its name, its length in bytes and its bytes.
+fn field(h: &mut Sha256, name: &str, bytes: &[u8]) {
+    h.update(name.as_bytes());
+    h.update((bytes.len() as u64).to_le_bytes());
+    h.update(bytes);
+}
+
+/// [`field`] of a grid's values as little-endian `f32` bytes in row-major order, without a copy
+/// of the whole grid.
+fn f32_field(h: &mut Sha256, name: &str, grid: &Array2<f32>) {
+    h.update(name.as_bytes());
+    h.update((4 * grid.len() as u64).to_le_bytes());
+    let mut buffer = [0u8; 4 * 1024];
+    let mut filled = 0;
+    for v in grid.iter() {
+        buffer[filled..filled + 4].copy_from_slice(&v.to_le_bytes());
+        filled += 4;
+        if filled == buffer.len() {
+            h.update(buffer);
+            filled = 0;
+        }
+    }
+    h.update(&buffer[..filled]);
 }
 
 /// Drainage and vegetation (before the painted controls) from the gathered inputs and the base

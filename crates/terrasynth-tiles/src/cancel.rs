@@ -16,8 +16,9 @@
 //! is never cancelled. A cancelled computation returns [`TileError::Cancelled`] and leaves no
 //! trace in any cache: a waiter that joined after its leader gave up computes it again.
 //!
-//! [`concurrently`] runs independent computations (the cold parent tiles of a landscape chain)
-//! on scoped threads of their own, each with its caller's interest, so that a cancellation
+//! [`concurrently`] runs independent computations (the cold parent tiles of a landscape chain;
+//! [`join`] two of different kinds, such as gathering a world's inputs and reading its stored
+//! layers) on scoped threads of their own, each with its caller's interest, so that a cancellation
 //! reaches them as it would reach the caller. They are plain threads, not rayon tasks: a rayon
 //! worker that blocks on a flight may be the one that would have run the work the flight's leader
 //! waits for, while a thread blocked here holds nothing anyone else needs (a tile only ever waits
@@ -192,27 +193,61 @@ pub fn concurrently<I: Sync, R: Send>(items: &[I], f: impl Fn(&I) -> R + Sync) -
     std::thread::scope(|s| {
         let spawned: Vec<_> = rest
             .iter()
-            .map(|item| {
-                let interest = interest.clone();
-                std::thread::Builder::new()
-                    .name("terrasynth-chain".into())
-                    .spawn_scoped(s, move || with_interest(interest, || f(item)))
-                    .map_err(|_| item)
-            })
+            .map(|item| spawn_on_behalf(s, &interest, move || f(item)).map_err(|_| item))
             .collect();
         let mut out = Vec::with_capacity(items.len());
         out.push(f(first));
         for handle in spawned {
-            match handle {
-                Ok(h) => match h.join() {
-                    Ok(r) => out.push(r),
-                    Err(panic) => std::panic::resume_unwind(panic),
-                },
-                Err(item) => out.push(f(item)),
-            }
+            out.push(match handle {
+                Ok(h) => joined(h),
+                Err(item) => f(item),
+            });
         }
         out
     })
+}
+
+/// `a()` and `b()` concurrently, as [`concurrently`] runs items of one kind: `a` on this thread,
+/// `b` on a scoped thread working on behalf of this thread's interest; one after the other on a
+/// rayon worker, or when the thread cannot be created.
+pub fn join<A, B: Send>(a: impl FnOnce() -> A, b: impl FnOnce() -> B + Send) -> (A, B) {
+    if rayon::current_thread_index().is_some() {
+        return (a(), b());
+    }
+    let interest = current();
+    // The other thread takes `b` from here; if it cannot be created, `b` is still here.
+    let slot = Mutex::new(Some(b));
+    let take = || lock(&slot).take();
+    std::thread::scope(|s| {
+        let handle = spawn_on_behalf(s, &interest, || take().map(|b| b()));
+        let first = a();
+        // `b` ran on the other thread, or (when it could not be created) runs here: it is taken
+        // exactly once, so one of the two gives its result.
+        match handle.ok().and_then(joined).or_else(|| take().map(|b| b())) {
+            Some(second) => (first, second),
+            None => unreachable!("join: `b` is taken exactly once"),
+        }
+    })
+}
+
+/// Spawns `f` on a scoped thread that works on behalf of `interest`.
+fn spawn_on_behalf<'scope, R: Send + 'scope>(
+    s: &'scope std::thread::Scope<'scope, '_>,
+    interest: &Interest,
+    f: impl FnOnce() -> R + Send + 'scope,
+) -> std::io::Result<std::thread::ScopedJoinHandle<'scope, R>> {
+    let interest = interest.clone();
+    std::thread::Builder::new()
+        .name("terrasynth-chain".into())
+        .spawn_scoped(s, move || with_interest(interest, f))
+}
+
+/// The result of a scoped thread; its panic goes on in the caller.
+fn joined<R>(h: std::thread::ScopedJoinHandle<'_, R>) -> R {
+    match h.join() {
+        Ok(r) => r,
+        Err(panic) => std::panic::resume_unwind(panic),
+    }
 }
 
 /// One computation in progress: who waits for it, and its result once done.
@@ -433,6 +468,51 @@ mod tests {
             .recv_timeout(Duration::from_secs(20))
             .unwrap_or_else(|e| panic!("the pool's work never ran: {e}"));
         assert_eq!(sums, vec![499_500, 999_000, 1_498_500]);
+    }
+
+    #[test]
+    fn a_join_runs_its_second_computation_on_another_thread_for_the_caller() {
+        let here = std::thread::current().id();
+        // Both run at once: each waits for the other at the barrier (a join that ran them one
+        // after the other would hang there; the test's 10 s bound fails it instead).
+        let met = Barrier::new(2);
+        let meet = || {
+            let deadline = std::time::Instant::now() + Duration::from_secs(10);
+            let waited = std::thread::scope(|s| {
+                let h = s.spawn(|| met.wait());
+                while !h.is_finished() {
+                    assert!(std::time::Instant::now() < deadline, "the two never met");
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                h.join().is_ok()
+            });
+            (std::thread::current().id(), waited)
+        };
+        let ((first, a_met), (second, b_met)) = join(meet, meet);
+        assert!(a_met && b_met);
+        assert_eq!(first, here, "the first runs here");
+        assert_ne!(second, here, "the second on a thread of its own");
+        // The second works on behalf of the caller's token.
+        let token = CancelToken::new();
+        token.cancel();
+        let (a, b) = run_cancellable(&token, || join(is_cancelled, is_cancelled));
+        assert!(a && b);
+        assert_eq!(join(is_cancelled, || 5), (false, 5));
+    }
+
+    #[test]
+    fn a_join_on_a_rayon_worker_runs_both_there() {
+        let pool = match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+            Ok(p) => p,
+            Err(e) => panic!("a one-thread pool: {e}"),
+        };
+        let (a, b) = pool.install(|| {
+            join(
+                || std::thread::current().id(),
+                || std::thread::current().id(),
+            )
+        });
+        assert_eq!(a, b);
     }
 
     #[test]
