@@ -473,23 +473,19 @@ mod tests {
     #[test]
     fn a_join_runs_its_second_computation_on_another_thread_for_the_caller() {
         let here = std::thread::current().id();
-        // Both run at once: each waits for the other at the barrier (a join that ran them one
-        // after the other would hang there; the test's 10 s bound fails it instead).
-        let met = Barrier::new(2);
-        let meet = || {
-            let deadline = std::time::Instant::now() + Duration::from_secs(10);
-            let waited = std::thread::scope(|s| {
-                let h = s.spawn(|| met.wait());
-                while !h.is_finished() {
-                    assert!(std::time::Instant::now() < deadline, "the two never met");
-                    std::thread::sleep(Duration::from_millis(1));
-                }
-                h.join().is_ok()
-            });
-            (std::thread::current().id(), waited)
+        // Both run at once: each tells the other it started and waits for the other's word. Run
+        // one after the other, the first would wait in vain (10 s) and report it.
+        let (to_b, from_a) = std::sync::mpsc::channel();
+        let (to_a, from_b) = std::sync::mpsc::channel();
+        let meet = |to: std::sync::mpsc::Sender<()>, from: std::sync::mpsc::Receiver<()>| {
+            move || {
+                let _ = to.send(());
+                let met = from.recv_timeout(Duration::from_secs(10)).is_ok();
+                (std::thread::current().id(), met)
+            }
         };
-        let ((first, a_met), (second, b_met)) = join(meet, meet);
-        assert!(a_met && b_met);
+        let ((first, a_met), (second, b_met)) = join(meet(to_b, from_b), meet(to_a, from_a));
+        assert!(a_met && b_met, "the two ran one after the other");
         assert_eq!(first, here, "the first runs here");
         assert_ne!(second, here, "the second on a thread of its own");
         // The second works on behalf of the caller's token.
