@@ -245,7 +245,17 @@ impl<A: Level> Biomes<A> {
     /// The parent window every biome's amplification of `out` reads (the union of theirs, so
     /// that it does not depend on which biomes are painted over `out`).
     pub fn parent_window_for(&self, out: Window) -> Window {
-        let mut it = self.amplifiers.iter().map(|a| a.parent_window_for(out));
+        self.union_over(|a| a.parent_window_for(out), out)
+    }
+
+    /// The parent window every biome's [`Level::amplify_layers`] of `out` reads (the union).
+    pub fn layers_parent_window_for(&self, out: Window) -> Window {
+        self.union_over(|a| a.layers_parent_window_for(out), out)
+    }
+
+    /// The union of `window` over the biomes' amplifiers (`out` when there are none).
+    fn union_over(&self, window: impl Fn(&A) -> Window, out: Window) -> Window {
+        let mut it = self.amplifiers.iter().map(window);
         let Some(first) = it.next() else {
             return out;
         };

@@ -150,19 +150,20 @@ impl VegetationLevels {
                 self.tile(inputs, z + 1, cx, cy).map(Some)
             });
         }
-        // Same parent elevation window, hence same matches, as the elevation tile.
+        // The same parent elevation, hence the same matches, as the elevation tile; the parent
+        // window is the one the species layers read (the elevation's breaching reads further).
         let cell = extent.level_cell_m(z - 1) as f32;
         let amplified = match &self.biomes {
             None => {
                 let amp = self.amplifiers.at(z);
-                let need = amp.parent_window_for(w);
+                let need = amp.layers_parent_window_for(w);
                 let parent_elev = inputs.elevation.window(z - 1, need)?;
                 let parent_veg = self.window(inputs, z - 1, need)?;
                 self.amplify_species(amp, z, w, need, parent_elev, &parent_veg, cell)?
             }
             Some(biomes) => {
                 // Every biome painted over the tile, blended as the elevation is.
-                let need = biomes.parent_window_for(w);
+                let need = biomes.layers_parent_window_for(w);
                 let parent_elev = inputs.elevation.window(z - 1, need)?;
                 let parent_veg = self.window(inputs, z - 1, need)?;
                 let painted = biomes.weights.window(z, w);
@@ -271,14 +272,17 @@ impl VegetationLevels {
             elevation: parent_elev,
             layers,
         };
-        let field = if in_dict.iter().any(|&d| d) {
-            Some(amp.amplify(&parent, w, cell)?)
+        // The species layers alone: the elevation tile has the level's elevation already, so
+        // its reconstruction and breaching are not run again (the same layers, bit for bit).
+        let amplified = if in_dict.iter().any(|&d| d) {
+            amp.amplify_layers(&parent, w, cell)?
         } else {
-            None
+            Vec::new()
         };
         let mut out = Vec::with_capacity(species.len());
         for (k, sp) in species.iter().enumerate() {
-            out.push(match field.as_ref().and_then(|f| f.layer(&sp.name)) {
+            let layer = amplified.iter().find(|(name, _)| name == &sp.name);
+            out.push(match layer.map(|(_, a)| a) {
                 Some(a) => a.clone(),
                 None => match amp {
                     AnyAmplifier::Dictionary(a) => a.upsample_layer(&parent_veg[k], need, w)?,

@@ -19,6 +19,23 @@ pub trait Level: Sync {
     /// `parent_cell_m` the parent's metric cell size.
     fn amplify(&self, parent: &Field, out: Window, parent_cell_m: f32)
         -> Result<Field, SynthError>;
+    /// The parent window [`Level::amplify_layers`] needs for output window `out` (at most
+    /// [`Level::parent_window_for`]`(out)`; that window unless the level reads less for its
+    /// layers).
+    fn layers_parent_window_for(&self, out: Window) -> Window {
+        self.parent_window_for(out)
+    }
+    /// The extra layers of [`Level::amplify`]`(parent, out, parent_cell_m)`, bit for bit, from a
+    /// `parent` covering [`Level::layers_parent_window_for`]`(out)`; a level may skip the work
+    /// its elevation alone needs.
+    fn amplify_layers(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Vec<(String, Array2<f32>)>, SynthError> {
+        Ok(self.amplify(parent, out, parent_cell_m)?.layers)
+    }
 }
 
 impl Level for Amplifier {
@@ -32,6 +49,17 @@ impl Level for Amplifier {
         parent_cell_m: f32,
     ) -> Result<Field, SynthError> {
         Amplifier::amplify(self, parent, out, parent_cell_m)
+    }
+    fn layers_parent_window_for(&self, out: Window) -> Window {
+        Amplifier::layers_parent_window_for(self, out)
+    }
+    fn amplify_layers(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Vec<(String, Array2<f32>)>, SynthError> {
+        Amplifier::amplify_layers(self, parent, out, parent_cell_m)
     }
 }
 
@@ -74,6 +102,23 @@ impl Level for AnyAmplifier {
         match self {
             AnyAmplifier::Dictionary(a) => a.amplify(parent, out, parent_cell_m),
             AnyAmplifier::Gradient(g) => g.amplify(parent, out, parent_cell_m),
+        }
+    }
+    fn layers_parent_window_for(&self, out: Window) -> Window {
+        match self {
+            AnyAmplifier::Dictionary(a) => a.layers_parent_window_for(out),
+            AnyAmplifier::Gradient(g) => g.layers_parent_window_for(out),
+        }
+    }
+    fn amplify_layers(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Vec<(String, Array2<f32>)>, SynthError> {
+        match self {
+            AnyAmplifier::Dictionary(a) => a.amplify_layers(parent, out, parent_cell_m),
+            AnyAmplifier::Gradient(g) => g.amplify_layers(parent, out, parent_cell_m),
         }
     }
 }

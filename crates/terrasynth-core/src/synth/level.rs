@@ -438,14 +438,15 @@ impl Amplifier {
     /// A layer the dictionary does not carry, carried to this level from the parent's values
     /// alone: the residual correction of a zero blend, i.e. the smooth C¹ up-sampling of the
     /// parent whose 2×2 box averages reproduce it. `parent` (held over `parent_window`) must cover
-    /// [`Amplifier::parent_window_for`]`(out)`. Window-invariant like [`Amplifier::amplify`].
+    /// [`Amplifier::layers_parent_window_for`]`(out)`. Window-invariant like
+    /// [`Amplifier::amplify`].
     pub fn upsample_layer(
         &self,
         parent: &Array2<f32>,
         parent_window: Window,
         out: Window,
     ) -> Result<Array2<f32>, SynthError> {
-        let needed = self.parent_window_for(out);
+        let needed = self.layers_parent_window_for(out);
         if !parent_window.contains(&needed)
             || parent.dim() != (parent_window.rows, parent_window.cols)
         {
@@ -454,7 +455,7 @@ impl Amplifier {
                 needed: needed.to_string(),
             });
         }
-        let bw = self.blend_window(out);
+        let bw = Self::margin_window(out, Self::layer_margin());
         let zero = Array2::<f32>::zeros((bw.rows, bw.cols));
         Ok(correct(
             &CATMULL_ROM,
@@ -480,8 +481,7 @@ impl Amplifier {
     /// Parent pixels of margin the corrections consume on each side: the elevation's passes times
     /// its kernel's reach, or the layers' Catmull-Rom passes, whichever is wider.
     fn correction_margin(&self) -> i64 {
-        (i64::from(self.levers.passes) * self.kernel.reach())
-            .max(LAYER_PASSES * CATMULL_ROM.reach())
+        (i64::from(self.levers.passes) * self.kernel.reach()).max(Self::layer_margin())
     }
 
     /// The hi-res window on which the raw blend is needed for output window `out`: the children
@@ -531,14 +531,30 @@ impl Amplifier {
 
     /// The parent window that [`Amplifier::amplify`] needs to compute output window `out`.
     pub fn parent_window_for(&self, out: Window) -> Window {
-        let out = self.conditioned_window(out);
-        let bw = self.blend_window(out);
+        self.parent_window_over(self.conditioned_window(out), self.correction_margin())
+    }
+
+    /// The parent window that [`Amplifier::amplify_layers`] needs to compute output window
+    /// `out`: the matches and corrections of the extra layers alone, without the elevation's
+    /// breaching margin and correction (so at most [`Amplifier::parent_window_for`]`(out)`).
+    pub fn layers_parent_window_for(&self, out: Window) -> Window {
+        self.parent_window_over(out, Self::layer_margin())
+    }
+
+    /// Parent pixels of margin the extra layers' corrections consume on each side.
+    fn layer_margin() -> i64 {
+        LAYER_PASSES * CATMULL_ROM.reach()
+    }
+
+    /// The parent window under `out` widened by `n` parent pixels, and under the low patches
+    /// of every primitive whose support meets the children of that widening.
+    fn parent_window_over(&self, out: Window, n: i64) -> Window {
+        let bw = Self::margin_window(out, n);
         let lr = self.lattice_range(bw);
         let s = self.step as i64;
         let q = (self.patch / 4) as i64;
         let (k0, k1) = Self::parent_span(out.col0, out.col1());
         let (l0, l1) = Self::parent_span(out.row0, out.row1());
-        let n = self.correction_margin();
         let c0 = (lr.i0 * s / 2 - q).min(k0 - n);
         let c1 = ((lr.i1 - 1) * s / 2 + q).max(k1 + n);
         let r0 = (lr.j0 * s / 2 - q).min(l0 - n);
@@ -1021,31 +1037,11 @@ impl Amplifier {
         out: Window,
         parent_cell_m: f32,
     ) -> Result<Field, SynthError> {
-        if out.is_empty() || out.len() > (1usize << 30) {
-            return Err(SynthError::BadWindow(format!(
-                "{out} has {} pixels",
-                out.len()
-            )));
-        }
-        let needed = self.parent_window_for(out);
-        if !parent.window.contains(&needed) {
-            return Err(SynthError::ParentTooSmall {
-                given: parent.window.to_string(),
-                needed: needed.to_string(),
-            });
-        }
-        let parent = parent.crop(needed).ok_or(SynthError::ParentTooSmall {
-            given: parent.window.to_string(),
-            needed: needed.to_string(),
-        })?;
-        if parent.elevation.iter().any(|v| !v.is_finite()) {
-            return Err(SynthError::NonFinite);
-        }
+        let parent = Self::checked_parent(parent, out, self.parent_window_for(out))?;
         let ext = self.conditioned_window(out);
         let bw = self.blend_window(ext);
         let lr = self.lattice_range(bw);
         let prims = self.match_primitives(&parent, lr, parent_cell_m);
-        let dict = &*self.dict;
         let slope = self
             .levers
             .slope_mod
@@ -1103,6 +1099,66 @@ impl Amplifier {
         } else {
             raw
         };
+        let layers = self.reconstruct_layers(&parent, out, lr, &prims);
+        Ok(Field {
+            window: out,
+            elevation,
+            layers,
+        })
+    }
+
+    /// The extra dictionary layers of window `out` of this level from `parent`, which must cover
+    /// [`Amplifier::layers_parent_window_for`]`(out)`: bit for bit the layers of
+    /// [`Amplifier::amplify`]`(parent, out, parent_cell_m)`, without reconstructing (and
+    /// breaching) the elevation, and matching only the primitives the layers read — for callers
+    /// that already have the level's elevation (the vegetation of a tile whose elevation tile
+    /// is computed).
+    pub fn amplify_layers(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<Vec<(String, Array2<f32>)>, SynthError> {
+        let parent = Self::checked_parent(parent, out, self.layers_parent_window_for(out))?;
+        let lr = self.lattice_range(Self::margin_window(out, Self::layer_margin()));
+        let prims = self.match_primitives(&parent, lr, parent_cell_m);
+        Ok(self.reconstruct_layers(&parent, out, lr, &prims))
+    }
+
+    /// `parent` cropped to `needed` (the parent window of output window `out`), refusing an empty
+    /// or oversized `out`, a parent that does not cover `needed` and non-finite elevation.
+    fn checked_parent(parent: &Field, out: Window, needed: Window) -> Result<Field, SynthError> {
+        if out.is_empty() || out.len() > (1usize << 30) {
+            return Err(SynthError::BadWindow(format!(
+                "{out} has {} pixels",
+                out.len()
+            )));
+        }
+        let too_small = || SynthError::ParentTooSmall {
+            given: parent.window.to_string(),
+            needed: needed.to_string(),
+        };
+        if !parent.window.contains(&needed) {
+            return Err(too_small());
+        }
+        let parent = parent.crop(needed).ok_or_else(too_small)?;
+        if parent.elevation.iter().any(|v| !v.is_finite()) {
+            return Err(SynthError::NonFinite);
+        }
+        Ok(parent)
+    }
+
+    /// The extra dictionary layers this amplifier reconstructs, over `out`, from the primitives
+    /// `prims` of lattice range `lr` (which must cover the layers' blend windows) and the parent's
+    /// own values of each layer (corrected against them; blended alone where it has none).
+    fn reconstruct_layers(
+        &self,
+        parent: &Field,
+        out: Window,
+        lr: LatticeRange,
+        prims: &[Primitive],
+    ) -> Vec<(String, Array2<f32>)> {
+        let dict = &*self.dict;
         let nl = if self.with_layers {
             dict.layers.len()
         } else {
@@ -1118,19 +1174,15 @@ impl Amplifier {
             // blended value is a function of its global pixel, so the window does not matter).
             let field = match parent.layer(&info.name) {
                 Some(pl) => {
-                    let lw = Self::margin_window(out, LAYER_PASSES * CATMULL_ROM.reach());
-                    let raw = self.blend(lw, lr, &prims, Blended::Layer(l), None);
+                    let lw = Self::margin_window(out, Self::layer_margin());
+                    let raw = self.blend(lw, lr, prims, Blended::Layer(l), None);
                     correct(&CATMULL_ROM, raw, lw, pl, parent.window, out, LAYER_PASSES)
                 }
-                None => self.blend(out, lr, &prims, Blended::Layer(l), None),
+                None => self.blend(out, lr, prims, Blended::Layer(l), None),
             };
             layers.push((info.name.clone(), field));
         }
-        Ok(Field {
-            window: out,
-            elevation,
-            layers,
-        })
+        layers
     }
 }
 

@@ -10,7 +10,9 @@ use terrasynth_core::synth::{
     amplify_chain, Amplifier, ClampedRaster, Field, KernelKind, Levers, SynthError, Window,
 };
 
-use terrasynth_test_support::{small_dictionary, synthetic_terrain};
+use terrasynth_test_support::{
+    small_dictionary, small_dictionary_with_vegetation, synthetic_terrain,
+};
 
 fn box2(a: &Array2<f32>) -> Array2<f32> {
     Array2::from_shape_fn((a.nrows() / 2, a.ncols() / 2), |(r, c)| {
@@ -415,6 +417,86 @@ fn parent_window_is_what_amplify_reads() {
         .amplify(&Field::elevation_only(wide_w, wide), out, 100.0)
         .unwrap();
     assert_eq!(a.elevation, b.elevation);
+}
+
+// --- the extra layers alone ---
+
+/// A parent field over `w` from `base` (offset 60 cells), with every layer of `dict` but its
+/// last as a smooth field in [0, 1] (the last is left to the layer's own blend).
+fn layered_parent(dict: &Dictionary, base: &Array2<f32>, w: Window) -> Field {
+    let at = |r: usize, c: usize| {
+        base[[
+            (w.row0 + r as i64 + 60) as usize,
+            (w.col0 + c as i64 + 60) as usize,
+        ]]
+    };
+    let n = dict.layers.len().saturating_sub(1);
+    Field {
+        window: w,
+        elevation: Array2::from_shape_fn((w.rows, w.cols), |(r, c)| at(r, c)),
+        layers: dict.layers[..n]
+            .iter()
+            .enumerate()
+            .map(|(k, info)| {
+                let layer = Array2::from_shape_fn((w.rows, w.cols), |(r, c)| {
+                    let x = (w.col0 + c as i64) as f32 * 0.05 + k as f32;
+                    let y = (w.row0 + r as i64) as f32 * 0.07;
+                    0.5 + 0.5 * (x.sin() * y.cos())
+                });
+                (info.name.clone(), layer)
+            })
+            .collect(),
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, .. ProptestConfig::default() })]
+
+    /// `amplify_layers` from a parent that covers only its own (smaller) window gives the layers
+    /// of `amplify` bit for bit, and `upsample_layer` needs no more than that window either.
+    #[test]
+    fn the_layers_alone_are_amplify_s_layers(c0 in -40i64..40, r0 in -40i64..40, w in 1usize..48, h in 1usize..48) {
+        let dict = small_dictionary_with_vegetation(12);
+        prop_assume!(dict.layers.len() >= 2);
+        let base = synthetic_terrain(260, 260, 6);
+        let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
+        let out = Window::new(c0, r0, w, h);
+        let full = amp.parent_window_for(out);
+        let need = amp.layers_parent_window_for(out);
+        prop_assert!(full.contains(&need) && need != full, "{need} inside {full}");
+        let full_parent = layered_parent(&dict, &base, full);
+        let whole = amp.amplify(&full_parent, out, 100.0).unwrap();
+        let parent = layered_parent(&dict, &base, need);
+        let layers = amp.amplify_layers(&parent, out, 100.0).unwrap();
+        prop_assert_eq!(layers.len(), dict.layers.len());
+        for ((n1, a), (n2, b)) in layers.iter().zip(&whole.layers) {
+            prop_assert_eq!(n1, n2);
+            prop_assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()), "{}", n1);
+        }
+        let up = amp.upsample_layer(&parent.layers[0].1, need, out).unwrap();
+        let up_full = amp.upsample_layer(&full_parent.layers[0].1, full, out).unwrap();
+        prop_assert!(up.iter().zip(&up_full).all(|(x, y)| x.to_bits() == y.to_bits()));
+    }
+}
+
+#[test]
+fn the_layers_alone_refuse_a_parent_too_small() {
+    let dict = small_dictionary_with_vegetation(12);
+    let base = synthetic_terrain(200, 200, 6);
+    let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
+    let out = Window::new(0, 0, 32, 32);
+    let need = amp.layers_parent_window_for(out);
+    let short = Window::new(need.col0 + 1, need.row0, need.cols - 1, need.rows);
+    assert!(matches!(
+        amp.amplify_layers(&layered_parent(&dict, &base, short), out, 100.0),
+        Err(SynthError::ParentTooSmall { .. })
+    ));
+    let mut nan = layered_parent(&dict, &base, need);
+    nan.elevation[[3, 3]] = f32::NAN;
+    assert!(matches!(
+        amp.amplify_layers(&nan, out, 100.0),
+        Err(SynthError::NonFinite)
+    ));
 }
 
 // --- sparse codes in the amplifier (issue #21) ---
