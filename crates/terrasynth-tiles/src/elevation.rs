@@ -34,9 +34,11 @@ use std::time::Instant;
 
 use ndarray::Array2;
 
+use moka::sync::Cache;
 use terrasynth_core::landscape::{water, WaterConfig};
 use terrasynth_core::raster::{box2, Grid};
-use terrasynth_core::synth::{AnyAmplifier, Field, Level, Window};
+
+use terrasynth_core::synth::{AnyAmplifier, Field, LayerAtoms, Level, Window};
 
 use crate::biomes::{blend, Biomes};
 use crate::cancel::uncancellable;
@@ -57,6 +59,10 @@ pub struct ElevationLevels {
     /// A biome world's biomes ([`crate::biomes`]; `None`: the chain amplifies alone).
     biomes: Option<Biomes<AnyAmplifier>>,
     cache: LevelCache<Array2<f32>>,
+    /// The atoms each amplified tile matched for the primitives its extra layers read
+    /// ([`ElevationLevels::layer_atoms`]), so that the vegetation tile at the same address
+    /// reconstructs its species layers without matching again.
+    layer_atoms: Cache<TileKey, Arc<LayerAtoms>>,
     coverage: CoverageLevels,
     water: WaterConfig,
     /// The world's class probabilities for the matching's class term.
@@ -72,6 +78,10 @@ pub struct ElevationLevels {
     /// Time spent computing level tiles, microseconds.
     pub synthesis_micros: AtomicU64,
 }
+
+/// The share of an elevation cache's bytes its tiles' layer atoms take (`1/LAYER_ATOMS_SHARE`):
+/// a tile's atoms are 5–25 KB against its 256 KB of elevation.
+const LAYER_ATOMS_SHARE: u64 = 16;
 
 /// Most parent tiles waiting for the background thread; beyond, new ones are dropped (a request
 /// computes them when it needs them).
@@ -167,7 +177,11 @@ impl ElevationLevels {
             classes,
             base_water: OnceLock::new(),
             coverage,
-            cache: LevelCache::new(cache_bytes),
+            cache: LevelCache::new(cache_bytes - cache_bytes / LAYER_ATOMS_SHARE),
+            layer_atoms: Cache::builder()
+                .weigher(|_, a: &Arc<LayerAtoms>| u32::try_from(a.bytes()).unwrap_or(u32::MAX))
+                .max_capacity(cache_bytes / LAYER_ATOMS_SHARE)
+                .build(),
             prefill: Prefill::default(),
             me: me.clone(),
             tiles_synthesized: AtomicU64::new(0),
@@ -194,6 +208,13 @@ impl ElevationLevels {
     /// The cache of level tiles.
     pub fn cache(&self) -> &LevelCache<Array2<f32>> {
         &self.cache
+    }
+
+    /// The atoms amplified tile `(z, tx, ty)` of a world without biomes matched for the
+    /// primitives its extra layers read, when its amplifier is a dictionary's and they are still
+    /// cached (they are kept when the tile is computed).
+    pub fn layer_atoms(&self, z: u8, tx: i64, ty: i64) -> Option<Arc<LayerAtoms>> {
+        self.layer_atoms.get(&(z, tx, ty))
     }
 
     /// The cache of coverage overview tiles.
@@ -317,7 +338,7 @@ impl ElevationLevels {
             });
         }
         let mut parents = Vec::new();
-        let elevation = self.amplify(z, w, route, &mut parents)?;
+        let elevation = self.amplify(z, w, route, &mut parents, Some((z, tx, ty)))?;
         self.tiles_synthesized.fetch_add(1, Ordering::Relaxed);
         // The parent tiles a cold chain skipped, computed once the tile is done (an abandoned
         // tile leaves nothing behind).
@@ -328,13 +349,15 @@ impl ElevationLevels {
     }
 
     /// Window `w` of amplified zoom `z`, from the parent window it needs; the parent tiles a
-    /// cold chain skipped are added to `skipped`. Each level is a cancellation point.
+    /// cold chain skipped are added to `skipped`. Each level is a cancellation point. `tile`:
+    /// the key of the tile `w` is, whose layer atoms a dictionary amplifier keeps.
     fn amplify(
         &self,
         z: u8,
         w: Window,
         route: Route,
         skipped: &mut Vec<TileKey>,
+        tile: Option<TileKey>,
     ) -> Result<Array2<f32>, TileError> {
         let (mut out, parent) = match &self.biomes {
             None => {
@@ -355,8 +378,15 @@ impl ElevationLevels {
                     elevation: parent,
                     layers,
                 };
-                let field =
-                    amplifier.amplify(&parent, w, self.extent.level_cell_m(z - 1) as f32)?;
+                let cell = self.extent.level_cell_m(z - 1) as f32;
+                let field = match (amplifier, tile) {
+                    (AnyAmplifier::Dictionary(a), Some(key)) => {
+                        let (field, atoms) = a.amplify_keeping_atoms(&parent, w, cell)?;
+                        self.layer_atoms.insert(key, Arc::new(atoms));
+                        field
+                    }
+                    _ => amplifier.amplify(&parent, w, cell)?,
+                };
                 (field.elevation, parent)
             }
             Some(biomes) => self.amplify_biomes(biomes, z, w, route, skipped)?,
@@ -449,7 +479,7 @@ impl ElevationLevels {
         if keys.iter().any(|k| self.cache.is_known(k)) {
             return self.window(z, w);
         }
-        let values = self.amplify(z, w, Route::LeastWork, skipped)?;
+        let values = self.amplify(z, w, Route::LeastWork, skipped, None)?;
         self.windows_synthesized.fetch_add(1, Ordering::Relaxed);
         skipped.extend(keys);
         Ok(values)

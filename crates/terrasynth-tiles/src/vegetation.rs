@@ -23,7 +23,7 @@ use terrasynth_core::landscape::{vegetation, LandscapeConfig};
 
 use crate::classes::ClassWeights;
 use terrasynth_core::raster::box2;
-use terrasynth_core::synth::{AnyAmplifier, Field, Level, SynthError, Window};
+use terrasynth_core::synth::{AnyAmplifier, Field, LayerAtoms, Level, SynthError, Window};
 
 use crate::base_layers::{cut, WholeWorld};
 use crate::biomes::{blend, Biomes};
@@ -61,25 +61,36 @@ pub struct VegetationLevels {
     /// A biome world's biomes (amplifiers reconstructing the species layers), blended as the
     /// elevation's are; `None`: the chain amplifies alone.
     biomes: Option<Biomes<AnyAmplifier>>,
+    /// Whether the elevation tile's matches are the vegetation's: the matching reads no species
+    /// layer (the elevation's parent field carries none), so the atoms the elevation tile kept
+    /// ([`ElevationLevels::layer_atoms`]) are the ones the species layers would match.
+    elevation_atoms: bool,
     cache: LevelCache<Vec<Array2<f32>>>,
 }
 
 impl VegetationLevels {
     /// Vegetation of `landscape`'s species, amplified with the zoom's band of `amplifiers` (which
     /// reconstruct only the species layers) or, in a biome world, `biomes`, cached in at most
-    /// `cache_bytes` bytes.
+    /// `cache_bytes` bytes. `matched_layers`: the extra layers the world's matching weighs (with
+    /// none of the species among them, a tile's species layers take the elevation tile's atoms).
     pub fn new(
         landscape: Arc<LandscapeConfig>,
         classes: Arc<ClassWeights>,
         amplifiers: Chain<AnyAmplifier>,
         biomes: Option<Biomes<AnyAmplifier>>,
         cache_bytes: u64,
+        matched_layers: &[String],
     ) -> Self {
+        let elevation_atoms = !landscape
+            .species
+            .iter()
+            .any(|sp| matched_layers.contains(&sp.name));
         VegetationLevels {
             landscape,
             classes,
             amplifiers,
             biomes,
+            elevation_atoms,
             cache: LevelCache::new(cache_bytes),
         }
     }
@@ -156,10 +167,23 @@ impl VegetationLevels {
         let amplified = match &self.biomes {
             None => {
                 let amp = self.amplifiers.at(z);
+                // The elevation tile first: computing it keeps the atoms its matching found.
+                let atoms = if self.elevation_atoms {
+                    inputs.elevation.tile(z, tx, ty)?;
+                    inputs.elevation.layer_atoms(z, tx, ty)
+                } else {
+                    None
+                };
                 let need = amp.layers_parent_window_for(w);
                 let parent_elev = inputs.elevation.window(z - 1, need)?;
                 let parent_veg = self.window(inputs, z - 1, need)?;
-                self.amplify_species(amp, z, w, need, parent_elev, &parent_veg, cell)?
+                let species = Species {
+                    window: need,
+                    parent_elev,
+                    parent_veg: &parent_veg,
+                    atoms: atoms.as_deref(),
+                };
+                self.amplify_species(amp, z, w, species, cell)?
             }
             Some(biomes) => {
                 // Every biome painted over the tile, blended as the elevation is.
@@ -169,13 +193,17 @@ impl VegetationLevels {
                 let painted = biomes.weights.window(z, w);
                 let mut per_biome = Vec::with_capacity(painted.len());
                 for (i, _) in &painted {
+                    let species = Species {
+                        window: need,
+                        parent_elev: parent_elev.clone(),
+                        parent_veg: &parent_veg,
+                        atoms: None,
+                    };
                     per_biome.push(self.amplify_species(
                         &biomes.amplifiers[*i],
                         z,
                         w,
-                        need,
-                        parent_elev.clone(),
-                        &parent_veg,
+                        species,
                         cell,
                     )?);
                 }
@@ -234,19 +262,22 @@ impl VegetationLevels {
     }
 
     /// Every species' density over window `w` of amplified zoom `z` as amplifier `amp` makes it
-    /// from parent window `need` (elevation and densities): the amplified layers of the
+    /// from the parent window of `parent` (elevation and densities): the amplified layers of the
     /// species its dictionary carries, the smooth up-sampling of the others (before the niche).
-    #[allow(clippy::too_many_arguments)]
     fn amplify_species(
         &self,
         amp: &AnyAmplifier,
         z: u8,
         w: Window,
-        need: Window,
-        parent_elev: Array2<f32>,
-        parent_veg: &[Array2<f32>],
+        parent: Species<'_>,
         cell: f32,
     ) -> Result<Vec<Array2<f32>>, TileError> {
+        let Species {
+            window: need,
+            parent_elev,
+            parent_veg,
+            atoms,
+        } = parent;
         let species = &self.landscape.species;
         // The gradient amplifier reconstructs every layer it is given (from its coarse gradients).
         let in_dict: Vec<bool> = species
@@ -275,7 +306,12 @@ impl VegetationLevels {
         // The species layers alone: the elevation tile has the level's elevation already, so
         // its reconstruction and breaching are not run again (the same layers, bit for bit).
         let amplified = if in_dict.iter().any(|&d| d) {
-            amp.amplify_layers(&parent, w, cell)?
+            match (amp, atoms) {
+                (AnyAmplifier::Dictionary(a), Some(atoms)) => {
+                    a.amplify_layers_with(&parent, w, atoms)?
+                }
+                _ => amp.amplify_layers(&parent, w, cell)?,
+            }
         } else {
             Vec::new()
         };
@@ -297,6 +333,18 @@ impl VegetationLevels {
         }
         Ok(out)
     }
+}
+
+/// The parent window a tile's species layers are amplified from.
+struct Species<'a> {
+    /// The parent window.
+    window: Window,
+    /// Its elevation.
+    parent_elev: Array2<f32>,
+    /// Its densities, one grid per species.
+    parent_veg: &'a [Array2<f32>],
+    /// The atoms the elevation tile at the same address matched, when they are the species'.
+    atoms: Option<&'a LayerAtoms>,
 }
 
 /// Wetness (log10 of the upstream area, 0 where there is none) of a drainage tile.

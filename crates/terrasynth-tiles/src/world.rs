@@ -370,6 +370,12 @@ impl World {
                 weights,
             }))
         };
+        let matched_layers: Vec<String> = parts
+            .weights
+            .layers
+            .iter()
+            .map(|(n, _)| n.clone())
+            .collect();
         let elevation_biomes = biomes(None)?;
         let vegetation_biomes = biomes(Some(&species))?;
         parts.landscape.check_biomes(biome_weights.names())?;
@@ -445,6 +451,7 @@ impl World {
                 layer_amplifiers,
                 vegetation_biomes,
                 budget / 4 - water_bytes / 2,
+                &matched_layers,
             ),
             water: WaterLevels::new(water_bytes),
             water_config: parts.water,

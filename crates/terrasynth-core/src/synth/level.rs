@@ -91,8 +91,35 @@ enum Blended {
     Layer(usize),
 }
 
+/// The atoms one level matched for the primitives that the extra layers of an output window read
+/// ([`Amplifier::amplify_keeping_atoms`]): all [`Amplifier::amplify_layers_with`] needs to
+/// reconstruct those layers without matching again.
+#[derive(Clone, Debug)]
+pub struct LayerAtoms {
+    /// The dictionary they index.
+    dict: Arc<Dictionary>,
+    /// The output window they were matched for.
+    out: Window,
+    /// Their lattice range.
+    lr: LatticeRange,
+    /// One atom per lattice point, row-major by `j`, then `i`.
+    atoms: Vec<u32>,
+}
+
+impl LayerAtoms {
+    /// The output window they were matched for.
+    pub fn window(&self) -> Window {
+        self.out
+    }
+
+    /// Bytes they hold.
+    pub fn bytes(&self) -> u64 {
+        (self.atoms.len() * 4 + std::mem::size_of::<Self>()) as u64
+    }
+}
+
 /// The lattice rows and columns of the primitives that cover a hi-res window.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct LatticeRange {
     i0: i64,
     i1: i64,
@@ -1037,6 +1064,46 @@ impl Amplifier {
         out: Window,
         parent_cell_m: f32,
     ) -> Result<Field, SynthError> {
+        Ok(self.amplify_matched(parent, out, parent_cell_m)?.0)
+    }
+
+    /// [`Amplifier::amplify`], keeping the atoms matched for the primitives the extra layers of
+    /// `out` read, so that [`Amplifier::amplify_layers_with`] can reconstruct those layers later
+    /// without matching again.
+    pub fn amplify_keeping_atoms(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<(Field, LayerAtoms), SynthError> {
+        let (field, lr, prims) = self.amplify_matched(parent, out, parent_cell_m)?;
+        let llr = self.lattice_range(Self::margin_window(out, Self::layer_margin()));
+        let ni = (lr.i1 - lr.i0) as usize;
+        let mut atoms = Vec::with_capacity(((llr.i1 - llr.i0) * (llr.j1 - llr.j0)).max(0) as usize);
+        for j in llr.j0..llr.j1 {
+            for i in llr.i0..llr.i1 {
+                let k = (j - lr.j0) as usize * ni + (i - lr.i0) as usize;
+                atoms.push(prims[k].atom as u32);
+            }
+        }
+        Ok((
+            field,
+            LayerAtoms {
+                dict: self.dict.clone(),
+                out,
+                lr: llr,
+                atoms,
+            },
+        ))
+    }
+
+    /// [`Amplifier::amplify`] and the lattice range and primitives it matched.
+    fn amplify_matched(
+        &self,
+        parent: &Field,
+        out: Window,
+        parent_cell_m: f32,
+    ) -> Result<(Field, LatticeRange, Vec<Primitive>), SynthError> {
         let parent = Self::checked_parent(parent, out, self.parent_window_for(out))?;
         let ext = self.conditioned_window(out);
         let bw = self.blend_window(ext);
@@ -1100,11 +1167,12 @@ impl Amplifier {
             raw
         };
         let layers = self.reconstruct_layers(&parent, out, lr, &prims);
-        Ok(Field {
+        let field = Field {
             window: out,
             elevation,
             layers,
-        })
+        };
+        Ok((field, lr, prims))
     }
 
     /// The extra dictionary layers of window `out` of this level from `parent`, which must cover
@@ -1123,6 +1191,34 @@ impl Amplifier {
         let lr = self.lattice_range(Self::margin_window(out, Self::layer_margin()));
         let prims = self.match_primitives(&parent, lr, parent_cell_m);
         Ok(self.reconstruct_layers(&parent, out, lr, &prims))
+    }
+
+    /// [`Amplifier::amplify_layers`] from the atoms an amplifier with the same dictionary (the same
+    /// `Arc`) and matching matched for `out` ([`Amplifier::amplify_keeping_atoms`]): the same layers, bit
+    /// for bit, when `parent` holds the same elevation and matched layers, without matching.
+    /// `parent` must cover [`Amplifier::layers_parent_window_for`]`(out)`.
+    pub fn amplify_layers_with(
+        &self,
+        parent: &Field,
+        out: Window,
+        atoms: &LayerAtoms,
+    ) -> Result<Vec<(String, Array2<f32>)>, SynthError> {
+        let parent = Self::checked_parent(parent, out, self.layers_parent_window_for(out))?;
+        if atoms.out != out || !Arc::ptr_eq(&atoms.dict, &self.dict) {
+            return Err(SynthError::BadWindow(format!(
+                "atoms matched for {} with another dictionary or window than {out}",
+                atoms.out
+            )));
+        }
+        let prims: Vec<Primitive> = atoms
+            .atoms
+            .iter()
+            .map(|&a| Primitive {
+                atom: a as usize,
+                ..Primitive::EMPTY
+            })
+            .collect();
+        Ok(self.reconstruct_layers(&parent, out, atoms.lr, &prims))
     }
 
     /// `parent` cropped to `needed` (the parent window of output window `out`), refusing an empty

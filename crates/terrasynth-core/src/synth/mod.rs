@@ -28,6 +28,6 @@ pub use error::SynthError;
 pub use field::{Field, Window};
 pub use gradient::GradientAmplifier;
 pub use kernel::KernelKind;
-pub use level::Amplifier;
+pub use level::{Amplifier, LayerAtoms};
 pub use levers::Levers;
 pub use levers::MAX_AMPLIFY_SPARSITY;

@@ -473,6 +473,21 @@ proptest! {
             prop_assert_eq!(n1, n2);
             prop_assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()), "{}", n1);
         }
+        // The atoms an elevation-only amplifier keeps, from a parent without the layers (as
+        // the elevation tiles are amplified), give the same layers without matching again.
+        let elevation_only = Amplifier::new(dict.clone(), &MatchWeights::default())
+            .unwrap()
+            .without_layers();
+        let bare = Field::elevation_only(full, full_parent.elevation.clone());
+        let (field, atoms) = elevation_only.amplify_keeping_atoms(&bare, out, 100.0).unwrap();
+        prop_assert_eq!(&field.elevation, &whole.elevation);
+        prop_assert!(field.layers.is_empty());
+        prop_assert_eq!(atoms.window(), out);
+        let reused = amp.amplify_layers_with(&parent, out, &atoms).unwrap();
+        for ((n1, a), (n2, b)) in reused.iter().zip(&whole.layers) {
+            prop_assert_eq!(n1, n2);
+            prop_assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()), "{}", n1);
+        }
         let up = amp.upsample_layer(&parent.layers[0].1, need, out).unwrap();
         let up_full = amp.upsample_layer(&full_parent.layers[0].1, full, out).unwrap();
         prop_assert!(up.iter().zip(&up_full).all(|(x, y)| x.to_bits() == y.to_bits()));
@@ -480,7 +495,7 @@ proptest! {
 }
 
 #[test]
-fn the_layers_alone_refuse_a_parent_too_small() {
+fn the_layers_alone_refuse_what_does_not_fit() {
     let dict = small_dictionary_with_vegetation(12);
     let base = synthetic_terrain(200, 200, 6);
     let amp = Amplifier::new(dict.clone(), &MatchWeights::default()).unwrap();
@@ -496,6 +511,22 @@ fn the_layers_alone_refuse_a_parent_too_small() {
     assert!(matches!(
         amp.amplify_layers(&nan, out, 100.0),
         Err(SynthError::NonFinite)
+    ));
+    // Kept atoms serve only their window and their dictionary.
+    let full = layered_parent(&dict, &base, amp.parent_window_for(out));
+    let (_, atoms) = amp.amplify_keeping_atoms(&full, out, 100.0).unwrap();
+    assert!(amp.amplify_layers_with(&full, out, &atoms).is_ok());
+    let other_window = Window::new(2, 0, 32, 32);
+    assert!(matches!(
+        amp.amplify_layers_with(&full, other_window, &atoms),
+        Err(SynthError::BadWindow(_))
+    ));
+    // The same atoms, another copy of the dictionary: refused, not trusted.
+    let copy = Arc::new((*dict).clone());
+    let other = Amplifier::new(copy, &MatchWeights::default()).unwrap();
+    assert!(matches!(
+        other.amplify_layers_with(&full, out, &atoms),
+        Err(SynthError::BadWindow(_))
     ));
 }
 
