@@ -136,16 +136,6 @@ fn d8_direction_avx512(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64])
     d8_direction_plain(dir, best, codes);
 }
 
-/// Row-major index of the receiver of cell `i`, if any.
-#[inline]
-fn receiver_index(i: usize, code: u8, rows: usize, cols: usize) -> Option<usize> {
-    if code as usize >= 8 {
-        return None;
-    }
-    let (nr, nc) = neighbour(i / cols, i % cols, code as usize, rows, cols)?;
-    Some(nr * cols + nc)
-}
-
 /// D8 upstream area (m²) from a receiver grid as produced by [`d8_receivers`] (codes ≥ 8 and
 /// codes pointing outside the grid are sinks): [`accumulate_sources`] of the cell areas.
 pub fn flow_accumulation_from_receivers(receivers: &Array2<u8>, cs: &CellSizes) -> Array2<f64> {
@@ -158,7 +148,7 @@ pub fn flow_accumulation_from_receivers(receivers: &Array2<u8>, cs: &CellSizes) 
 /// Accumulates `sources` down a D8 receiver grid: every cell gets its own source plus the sum of
 /// the sources of every cell draining through it (the upstream area when sources are cell areas;
 /// injected inflows are added as extra source). Cells are processed in a Kahn topological order
-/// (in-degree queue seeded in row-major order), O(n). Cycles, which `d8_receivers` never
+/// (in-degree stack seeded in row-major order), O(n). Cycles, which `d8_receivers` never
 /// produces, would leave their cells with only their upstream sum so far. A `sources` grid of
 /// another shape gives zeros.
 pub fn accumulate_sources(receivers: &Array2<u8>, sources: &Array2<f64>) -> Array2<f64> {
@@ -167,25 +157,48 @@ pub fn accumulate_sources(receivers: &Array2<u8>, sources: &Array2<f64>) -> Arra
         return Array2::zeros((rows, cols));
     }
     let n = rows * cols;
-    let codes: Vec<u8> = receivers.iter().copied().collect();
-    let mut acc: Vec<f64> = sources.iter().copied().collect();
-    let mut rcv = vec![usize::MAX; n];
+    // Receivers as `u32` cell indices (half the memory traffic of `usize`); a grid of 4 G cells
+    // or more takes the naive walk (the same sums up to rounding, slowly).
+    let no_receiver = u32::MAX;
+    if n >= no_receiver as usize {
+        return super::naive::accumulate_sources(receivers, sources);
+    }
+    let mut rcv = vec![no_receiver; n];
     let mut indeg = vec![0u8; n];
-    for i in 0..n {
-        if let Some(j) = receiver_index(i, codes[i], rows, cols) {
-            rcv[i] = j;
+    for ((r, c), &code) in receivers.indexed_iter() {
+        if code as usize >= 8 {
+            continue;
+        }
+        if let Some((nr, nc)) = neighbour(r, c, code as usize, rows, cols) {
+            let j = nr * cols + nc;
+            rcv[r * cols + c] = j as u32;
             indeg[j] += 1;
         }
     }
-    let mut stack: Vec<usize> = (0..n).filter(|&i| indeg[i] == 0).rev().collect();
-    while let Some(i) = stack.pop() {
-        let j = rcv[i];
-        if j != usize::MAX {
-            acc[j] += acc[i];
-            indeg[j] -= 1;
-            if indeg[j] == 0 {
-                stack.push(j);
+    let mut acc: Vec<f64> = sources.iter().copied().collect();
+    // Kahn's order without a queue: the cells nobody drains into, in row-major order, each
+    // followed down its chain of receivers for as long as the next one has all its donors in
+    // (what a stack seeded with them would pop, the same additions in the same order). A cell
+    // reached so is marked, so that the scan does not take it again.
+    const TAKEN: u8 = u8::MAX;
+    for i in 0..n {
+        if indeg[i] != 0 {
+            continue;
+        }
+        let mut cur = i;
+        loop {
+            let j = rcv[cur];
+            if j == no_receiver {
+                break;
             }
+            let j = j as usize;
+            acc[j] += acc[cur];
+            indeg[j] -= 1;
+            if indeg[j] != 0 {
+                break;
+            }
+            indeg[j] = TAKEN;
+            cur = j;
         }
     }
     Array2::from_shape_vec((rows, cols), acc).unwrap_or_else(|_| Array2::zeros((rows, cols)))
