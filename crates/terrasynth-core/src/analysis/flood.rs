@@ -1,7 +1,9 @@
 //! Depression filling by Priority-Flood (Barnes, Lehman & Mulla 2014, "Priority-Flood: An
 //! optimal depression-filling and watershed-labeling algorithm for digital elevation models"),
-//! in its improved form: a priority queue (a 4-ary heap) for cells that keep their own elevation
-//! plus a plain FIFO for cells raised inside a depression, which never need re-sorting.
+//! in its improved form: a priority queue for cells that keep their own elevation plus a plain
+//! FIFO for cells raised inside a depression, which never need re-sorting. The priority queue is
+//! a bitset over the cells ranked in advance (`rank_queue`) for grids of fewer than 2³²
+//! cells, a 4-ary heap for larger ones.
 //!
 //! All border cells are outlets, and so are NaN cells (nodata): they seed the flood and keep
 //! their value, and their neighbours drain into them. Output is always `≥` the input.
@@ -12,6 +14,7 @@ use std::collections::{BinaryHeap, VecDeque};
 use ndarray::Array2;
 
 use super::common::{neighbour, next_up, order_key, values, D8_OFFSETS};
+use super::rank_queue::RankQueue;
 
 /// A heap entry ordering cells by (elevation key, row-major index).
 trait Entry: Ord + Copy {
@@ -75,8 +78,8 @@ impl<E: Ord + Copy> MinQueue<E> for BinaryHeap<Reverse<E>> {
 }
 
 /// A 4-ary min-heap: half the depth of a binary heap and a node's children in one cache line,
-/// so a pop compares more but waits for memory less. The floods' queue, and the least-cost
-/// search's of [`super::breach`].
+/// so a pop compares more but waits for memory less. The least-cost search's queue of
+/// [`super::breach`], and the floods' on grids of 2³² cells or more.
 #[derive(Debug, Default)]
 pub(crate) struct QuadHeap<E> {
     v: Vec<E>,
@@ -152,14 +155,25 @@ impl<E: Ord + Copy> QuadHeap<E> {
 /// ordered flood; ties in the heap are broken by the row-major index, so results are fully
 /// deterministic.
 fn flood(z: &Array2<f32>, raise: impl Fn(f32) -> f32) -> Array2<f32> {
-    flood_in::<QuadHeap<u64>, QuadHeap<(u32, usize)>>(z, raise)
+    flood_in(
+        z,
+        raise,
+        |w| RankQueue::new(w.iter().map(|&v| order_key(v))),
+        |_| QuadHeap::default(),
+    )
 }
 
-/// [`flood`] with the queues `Q` (grids of fewer than 2³² cells) and `Q2` (larger grids).
-pub(crate) fn flood_in<Q, Q2>(z: &Array2<f32>, raise: impl Fn(f32) -> f32) -> Array2<f32>
+/// [`flood`] with the queue `small` makes for grids of fewer than 2³² cells and the one `large`
+/// makes for larger grids, each given the grid's values.
+pub(crate) fn flood_in<Q, Q2>(
+    z: &Array2<f32>,
+    raise: impl Fn(f32) -> f32,
+    small: impl FnOnce(&[f32]) -> Q,
+    large: impl FnOnce(&[f32]) -> Q2,
+) -> Array2<f32>
 where
-    Q: MinQueue<u64> + Default,
-    Q2: MinQueue<(u32, usize)> + Default,
+    Q: MinQueue<u64>,
+    Q2: MinQueue<(u32, usize)>,
 {
     let (rows, cols) = z.dim();
     let w: Vec<f32> = values(z).into_owned();
@@ -167,28 +181,41 @@ where
         return Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone());
     }
     let w = if w.len() < (1usize << 32) {
-        flood_with::<u64, Q>(w, rows, cols, raise)
+        let open = small(&w);
+        flood_with::<u64, Q>(w, rows, cols, raise, open)
     } else {
-        flood_with::<(u32, usize), Q2>(w, rows, cols, raise)
+        let open = large(&w);
+        flood_with::<(u32, usize), Q2>(w, rows, cols, raise, open)
     };
     Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone())
 }
 
-fn flood_with<E: Entry, Q: MinQueue<E> + Default>(
+/// The flood of the values `w` of a `rows × cols` grid with the empty queue `open`, whose
+/// entries are `(order key of the cell's value, index)`.
+fn flood_with<E: Entry, Q: MinQueue<E>>(
     mut w: Vec<f32>,
     rows: usize,
     cols: usize,
     raise: impl Fn(f32) -> f32,
+    mut open: Q,
 ) -> Vec<f32> {
-    let n = w.len();
-    let mut closed = vec![false; n];
-    let mut open = Q::default();
+    /// `state` bits: the cell has entered a queue; the cell is on the grid's border.
+    const CLOSED: u8 = 1;
+    const BORDER: u8 = 2;
+    let mut state = vec![0u8; w.len()];
     let mut pit: VecDeque<usize> = VecDeque::new();
-    for (i, &v) in w.iter().enumerate() {
-        let (r, c) = (i / cols, i % cols);
-        if r == 0 || c == 0 || r == rows - 1 || c == cols - 1 || v.is_nan() {
-            closed[i] = true;
-            open.push(E::make(order_key(v), i));
+    for r in 0..rows {
+        let on_edge = r == 0 || r == rows - 1;
+        for c in 0..cols {
+            let i = r * cols + c;
+            let border = on_edge || c == 0 || c == cols - 1;
+            if border {
+                state[i] = BORDER;
+            }
+            if border || w[i].is_nan() {
+                state[i] |= CLOSED;
+                open.push(E::make(order_key(w[i]), i));
+            }
         }
     }
     let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
@@ -211,13 +238,13 @@ fn flood_with<E: Entry, Q: MinQueue<E> + Default>(
                 None => break,
             }
         };
-        let (r, c) = (i / cols, i % cols);
-        let count = if r > 0 && c > 0 && r < rows - 1 && c < cols - 1 {
+        let count = if state[i] & BORDER == 0 {
             for (k, o) in offsets.iter().enumerate() {
                 nbrs[k] = i.wrapping_add_signed(*o);
             }
             8
         } else {
+            let (r, c) = (i / cols, i % cols);
             let mut k = 0;
             for d in 0..8 {
                 if let Some((nr, nc)) = neighbour(r, c, d, rows, cols) {
@@ -229,10 +256,10 @@ fn flood_with<E: Entry, Q: MinQueue<E> + Default>(
         };
         let spill = raise(w[i]);
         for &j in &nbrs[..count] {
-            if closed[j] {
+            if state[j] & CLOSED != 0 {
                 continue;
             }
-            closed[j] = true;
+            state[j] |= CLOSED;
             // A NaN `spill` (from an outlet) compares false: the neighbour keeps its value.
             if w[j] <= spill {
                 w[j] = spill;

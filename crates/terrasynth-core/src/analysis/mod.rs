@@ -12,7 +12,8 @@
 //! - [`contour`]: contour lines by marching squares (window-invariant crossings), joined.
 //! - [`derivatives`]: Horn gradient, slope, aspect, northness, curvature.
 //! - [`hillshade`](mod@hillshade): ESRI/GDAL hillshade.
-//! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent.
+//! - [`flood`]: Priority-Flood (+ε) depression filling and flood extent; `rank_queue`: its
+//!   queue.
 //! - [`flow`]: D8 receivers, D8 and MFD flow accumulation.
 //! - [`metrics`]: RMSE, relief, 1-Wasserstein, box down-sampling.
 //! - [`fft`](mod@fft): the radix-2 / Bluestein FFT (1D, 2D) and its naive DFT.
@@ -36,6 +37,7 @@ pub mod metrics;
 pub mod naive;
 pub mod ppa;
 pub mod ppa_naive;
+mod rank_queue;
 pub mod realism;
 pub mod spectrum;
 

@@ -70,14 +70,16 @@ pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
 }
 
 /// Priority-Flood+ε ([`priority_flood_fill`](super::priority_flood_fill)'s algorithm) on the
-/// standard library's binary heap instead of its 4-ary heap: the same sequence of cells, hence
-/// the same bits, if the 4-ary heap pops in order.
+/// standard library's binary heap instead of its ranked bitset queue: the same sequence of
+/// cells, hence the same bits, if the bitset queue pops in order.
 pub fn priority_flood_fill_binary_heap(z: &Array2<f32>) -> Array2<f32> {
     use std::cmp::Reverse;
     use std::collections::BinaryHeap;
-    super::flood::flood_in::<BinaryHeap<Reverse<u64>>, BinaryHeap<Reverse<(u32, usize)>>>(
+    super::flood::flood_in(
         z,
         super::next_up,
+        |_| BinaryHeap::<Reverse<u64>>::new(),
+        |_| BinaryHeap::<Reverse<(u32, usize)>>::new(),
     )
 }
 

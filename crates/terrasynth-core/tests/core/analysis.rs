@@ -153,8 +153,8 @@ proptest! {
         prop_assert_eq!(fast, slow);
     }
 
-    /// Priority-Flood+ε on its 4-ary heap equals the same flood on the standard binary heap bit
-    /// for bit (quantised heights full of ties, and continuous heights with NaN cells).
+    /// Priority-Flood+ε on its ranked bitset queue equals the same flood on the standard binary
+    /// heap bit for bit (quantised heights full of ties, and continuous heights with NaN cells).
     #[test]
     fn eps_fill_equals_the_binary_heap_flood(
         (tied, _c) in grid_strategy(),

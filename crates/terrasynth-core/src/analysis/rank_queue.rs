@@ -1,0 +1,174 @@
+//! The Priority-Flood's queue for grids of fewer than 2³² cells: every cell's entry (its order key
+//! and its row-major index) is known before the flood starts and a cell enters at most once, so
+//! the entries are ranked once, by a radix sort, and the queue is a bitset over the ranks. A push
+//! sets a bit; the smallest entry is the first set bit, found from a cursor that only moves back
+//! when a push lands before it. The flood's pushes all lie above the entry being processed, so
+//! the cursor sweeps the bitset once: a pop costs a bit scan instead of a heap's sift-down.
+//!
+//! It pops the same sequence as any other [`MinQueue`] holding the same entries (they are
+//! distinct), so the flood's bits do not depend on it; the flood's property test compares it with
+//! the standard library's binary heap.
+
+use super::flood::MinQueue;
+
+/// A min-queue of the entries `(key << 32) | index` of one grid's cells, each cell's key fixed
+/// in advance. Pushing an entry whose key is not its cell's is a logic error (debug-asserted).
+#[derive(Debug)]
+pub(crate) struct RankQueue {
+    /// Every cell's entry, in increasing order.
+    sorted: Vec<u64>,
+    /// `rank[i]`: the position of cell `i`'s entry in `sorted`.
+    rank: Vec<u32>,
+    /// One bit per rank, set while that entry is queued.
+    bits: Vec<u64>,
+    /// The first non-zero word of `bits`, or `bits.len()` when the queue is empty.
+    first: usize,
+}
+
+impl RankQueue {
+    /// An empty queue for the cells whose order keys are `keys` (cell `i`'s entry is
+    /// `(keys[i] << 32) | i`). There must be fewer than 2³² keys.
+    pub(crate) fn new(keys: impl ExactSizeIterator<Item = u32>) -> Self {
+        let n = keys.len();
+        debug_assert!(u32::try_from(n).is_ok());
+        let mut sorted: Vec<u64> = keys
+            .enumerate()
+            .map(|(i, k)| (u64::from(k) << 32) | i as u64)
+            .collect();
+        sort_by_key(&mut sorted);
+        let mut rank = vec![0u32; n];
+        for (r, &e) in sorted.iter().enumerate() {
+            rank[(e & 0xFFFF_FFFF) as usize] = r as u32;
+        }
+        let words = n.div_ceil(64);
+        RankQueue {
+            sorted,
+            rank,
+            bits: vec![0; words],
+            first: words,
+        }
+    }
+}
+
+/// Sorts entries `(key << 32) | index` that come in increasing index order into increasing
+/// order: a stable least-significant-digit radix sort on the key's four bytes, skipping the
+/// bytes every entry shares (an elevation grid's top byte, usually), so ties stay in index order.
+fn sort_by_key(v: &mut Vec<u64>) {
+    let mut counts = [[0usize; 256]; 4];
+    for &e in v.iter() {
+        for (byte, count) in counts.iter_mut().enumerate() {
+            count[((e >> (32 + 8 * byte)) & 0xFF) as usize] += 1;
+        }
+    }
+    let mut out = vec![0u64; v.len()];
+    for (byte, count) in counts.iter().enumerate() {
+        if count.contains(&v.len()) {
+            continue;
+        }
+        let mut next = [0usize; 256];
+        let mut sum = 0;
+        for (slot, &k) in next.iter_mut().zip(count) {
+            *slot = sum;
+            sum += k;
+        }
+        let shift = 32 + 8 * byte;
+        for &e in v.iter() {
+            let digit = ((e >> shift) & 0xFF) as usize;
+            out[next[digit]] = e;
+            next[digit] += 1;
+        }
+        std::mem::swap(v, &mut out);
+    }
+}
+
+impl MinQueue<u64> for RankQueue {
+    #[inline]
+    fn push(&mut self, e: u64) {
+        let r = self.rank[(e & 0xFFFF_FFFF) as usize] as usize;
+        debug_assert_eq!(self.sorted[r], e, "an entry whose key is not its cell's");
+        self.bits[r >> 6] |= 1 << (r & 63);
+        self.first = self.first.min(r >> 6);
+    }
+
+    #[inline]
+    fn peek(&self) -> Option<u64> {
+        let word = *self.bits.get(self.first)?;
+        Some(self.sorted[self.first * 64 + word.trailing_zeros() as usize])
+    }
+
+    #[inline]
+    fn pop(&mut self) -> Option<u64> {
+        let word = self.bits.get_mut(self.first)?;
+        let r = self.first * 64 + word.trailing_zeros() as usize;
+        *word &= *word - 1;
+        while self.bits.get(self.first) == Some(&0) {
+            self.first += 1;
+        }
+        Some(self.sorted[r])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeSet;
+
+    fn xorshift(mut x: u64) -> impl FnMut() -> u64 {
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        }
+    }
+
+    /// The ranked entries are the cells' entries in increasing order, for keys with many ties
+    /// and keys that differ in every byte.
+    #[test]
+    fn the_ranks_sort_the_entries() {
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
+        for spread in [7u64, 1 << 12, 1 << 32] {
+            let keys: Vec<u32> = (0..5000).map(|_| (next() % spread) as u32).collect();
+            let q = RankQueue::new(keys.iter().copied());
+            let mut expected: Vec<u64> = keys
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| (u64::from(k) << 32) | i as u64)
+                .collect();
+            expected.sort_unstable();
+            assert_eq!(q.sorted, expected);
+            for (r, &e) in q.sorted.iter().enumerate() {
+                assert_eq!(q.rank[(e & 0xFFFF_FFFF) as usize] as usize, r);
+            }
+        }
+    }
+
+    /// Pushes in any order (before the cursor too) and pops interleaved: the queue pops what an
+    /// ordered set pops.
+    #[test]
+    fn the_rank_queue_pops_in_order() {
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
+        let n = 3000usize;
+        let keys: Vec<u32> = (0..n).map(|_| (next() % 400) as u32).collect();
+        let entry = |i: usize| (u64::from(keys[i]) << 32) | i as u64;
+        let mut queue = RankQueue::new(keys.iter().copied());
+        let mut reference = BTreeSet::new();
+        let mut unpushed: Vec<usize> = (0..n).collect();
+        for round in 0..2 * n {
+            if round % 3 == 2 || unpushed.is_empty() {
+                assert_eq!(queue.pop(), reference.pop_first());
+            } else {
+                let i = unpushed.swap_remove((next() % unpushed.len() as u64) as usize);
+                queue.push(entry(i));
+                reference.insert(entry(i));
+            }
+            assert_eq!(queue.peek(), reference.first().copied());
+        }
+        while let Some(e) = reference.pop_first() {
+            assert_eq!(queue.pop(), Some(e));
+        }
+        assert_eq!((queue.peek(), queue.pop()), (None, None));
+        let mut empty = RankQueue::new(std::iter::empty());
+        assert_eq!((empty.peek(), empty.pop()), (None, None));
+    }
+}
