@@ -177,12 +177,13 @@ impl DrainageLevels {
             let ec = (qc - ew.col0) as usize;
             let zq = f64::from(pe[[er, ec]]);
             let (dx, dy) = (pcells.dx[er], pcells.dy[er]);
+            let diagonal = dx.hypot(dy);
             let mut best = 0.0f64;
             let mut target = None;
             for &(dr, dc) in &D8_OFFSETS {
                 let (nr, nc) = (er as isize + dr, ec as isize + dc);
                 let dist = match (dr != 0, dc != 0) {
-                    (true, true) => dx.hypot(dy),
+                    (true, true) => diagonal,
                     (true, false) => dy,
                     _ => dx,
                 };
