@@ -122,12 +122,12 @@ mod tests {
         }
     }
 
-    /// The ranked entries are the cells' entries in increasing order, for keys with many ties
-    /// and keys that differ in every byte.
+    /// The ranked entries are the cells' entries in increasing order, for keys that are all
+    /// equal (no byte to sort on), keys with many ties and keys that differ in every byte.
     #[test]
     fn the_ranks_sort_the_entries() {
         let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
-        for spread in [7u64, 1 << 12, 1 << 32] {
+        for spread in [1u64, 7, 1 << 12, 1 << 32] {
             let keys: Vec<u32> = (0..5000).map(|_| (next() % spread) as u32).collect();
             let q = RankQueue::new(keys.iter().copied());
             let mut expected: Vec<u64> = keys
