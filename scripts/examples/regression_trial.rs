@@ -15,7 +15,10 @@
 //! `<crop>.low.tif` of `TEST_DIR`. `GAIN` scales the prediction (default 1). `TEXTURE` (default 0)
 //! adds that much of the served output's detail above the input's Nyquist (an FFT high-pass of
 //! output − bicubic). With `CLASSES=K` in the environment, one regression per class and phase:
-//! the neighbourhood's gradient orientation in `K / 2` sectors times its Laplacian's sign.
+//! the neighbourhood's gradient orientation in `K / 2` sectors times its Laplacian's sign. With
+//! `MATCHED=1`, `TEXTURE` is instead the ratio of the output's energy above the input's Nyquist
+//! to the prediction's own, and each crop's texture weight is solved from it (both energies by
+//! the same FFT high-pass), so the texture's amplitude follows what the input predicts.
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -185,14 +188,33 @@ fn main() {
             let detail = Array2::from_shape_fn((rows, cols), |(i, j)| out.data[[i, j]] - bic(i, j));
             high_pass(&detail, 0.5 / FACTOR as f64)
         });
-        out.data = Array2::from_shape_fn((rows, cols), |(i, j)| {
+        let pred = Array2::from_shape_fn((rows, cols), |(i, j)| {
             let mut f = Vec::with_capacity(n);
             features(&low, i, j, r, true, &mut f);
             let w = &weights
                 [class_of(&f, r, classes) * FACTOR * FACTOR + (i % FACTOR) * FACTOR + j % FACTOR];
-            let pred: f64 = f.iter().zip(w).map(|(a, b)| a * b).sum();
-            let tex = texture.as_ref().map_or(0.0, |t| texture_gain * t[[i, j]]);
-            bic(i, j) + gain * pred as f32 + tex
+            gain * f.iter().zip(w).map(|(a, b)| a * b).sum::<f64>() as f32
+        });
+        // With `MATCHED=1`, the texture's weight is set so that the output's energy above the
+        // input's Nyquist is `TEXTURE` times the prediction's (both measured on the crop).
+        let texture_weight = match (&texture, std::env::var("MATCHED").is_ok()) {
+            (Some(t), true) => {
+                let energy = |a: &Array2<f32>| {
+                    high_pass(a, 0.5 / FACTOR as f64)
+                        .iter()
+                        .map(|&v| f64::from(v) * f64::from(v))
+                        .sum::<f64>()
+                };
+                let (ep, et) = (energy(&pred), energy(t));
+                let w = ((f64::from(texture_gain) - 1.0).max(0.0) * ep / et.max(1e-30)).sqrt();
+                eprintln!("{name}: texture weight {w:.3}");
+                w as f32
+            }
+            _ => texture_gain,
+        };
+        out.data = Array2::from_shape_fn((rows, cols), |(i, j)| {
+            let tex = texture.as_ref().map_or(0.0, |t| texture_weight * t[[i, j]]);
+            bic(i, j) + pred[[i, j]] + tex
         });
         write_geotiff_file(&out, &dst.join(format!("{name}.out.tif"))).unwrap();
         eprintln!("predicted {name}");
