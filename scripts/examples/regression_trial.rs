@@ -34,9 +34,10 @@ use terrasynth_core::synth::baselines::bicubic_upsample;
 /// Up-sampling factor between the suite's inputs and outputs (two ×2 levels).
 const FACTOR: usize = 4;
 
-/// The features of fine pixel `(i, j)`: the input's neighbourhood of radius `r` around the
-/// coarse cell holding it, minus that cell's value; `None` where it leaves the grid and `clamp`
-/// is false.
+/// The features of fine pixel `(i, j)` into `f`: the input's neighbourhood of radius `r` around
+/// the coarse cell holding it, minus that cell's value (edge cells repeated when `clamp`).
+/// Returns false, leaving `f` as it was, where the neighbourhood leaves the grid and `clamp` is
+/// false.
 fn features(low: &Array2<f32>, i: usize, j: usize, r: i64, clamp: bool, f: &mut Vec<f64>) -> bool {
     let (lr, lc) = (low.nrows() as i64, low.ncols() as i64);
     let (ci, cj) = ((i / FACTOR) as i64, (j / FACTOR) as i64);
