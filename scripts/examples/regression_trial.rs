@@ -1,6 +1,6 @@
 //! A measurement for issue #12's acceptance 4: how much of the truth's detail above the input's
-//! Nyquist can a linear (or piecewise-linear) predictor of the input recover? It fits, by ridge-regularised least
-//! squares, one linear filter per sub-pixel phase (16 for the suite's ×4) from the input's
+//! Nyquist can a linear (or piecewise-linear) predictor of the input recover? It fits, by
+//! ridge-regularised least squares, one linear filter per sub-pixel phase (16 for the suite's ×4) from the input's
 //! `(2R+1)²` neighbourhood (each value minus the centre cell's, so flat input predicts nothing)
 //! to the truth's detail over the bicubic surface, on training pairs cut from the part of the
 //! committed grid the held-out dictionary learns from; then predicts the held-out crops. Its
@@ -17,8 +17,9 @@
 //! output − bicubic). With `CLASSES=K` in the environment, one regression per class and phase:
 //! the neighbourhood's gradient orientation in `K / 2` sectors times its Laplacian's sign. With
 //! `MATCHED=1`, `TEXTURE` is instead the ratio of the output's energy above the input's Nyquist
-//! to the prediction's own, and each crop's texture weight is solved from it (both energies by
-//! the same FFT high-pass), so the texture's amplitude follows what the input predicts.
+//! to the prediction's own, and each crop's texture weight is solved from it (both energies as
+//! `terrasynth eval` measures the band: `analysis::band_energy`), so the texture's amplitude
+//! follows what the input predicts.
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -26,7 +27,7 @@
 use std::path::{Path, PathBuf};
 
 use ndarray::Array2;
-use terrasynth_core::analysis::{fft2, Complex};
+use terrasynth_core::analysis::{band_energy, fft2, Complex};
 use terrasynth_core::dictionary::omp::solve;
 use terrasynth_core::raster::{read_geotiff_file, write_geotiff_file, ReadLimits};
 use terrasynth_core::synth::baselines::bicubic_upsample;
@@ -93,6 +94,12 @@ fn class_of(f: &[f64], r: i64, classes: usize) -> usize {
     sector * 2 + usize::from(lap > 0.0)
 }
 
+/// The regression of fine pixel `(i, j)` with features `f`: its class's filter for its phase.
+fn slot(f: &[f64], r: i64, classes: usize, i: usize, j: usize) -> usize {
+    class_of(f, r, classes) * FACTOR * FACTOR + (i % FACTOR) * FACTOR + j % FACTOR
+}
+
+/// The files of `dir` whose names end in `suffix`, by name (the name without the suffix).
 fn pairs(dir: &Path, suffix: &str) -> Vec<(String, PathBuf)> {
     let mut out: Vec<(String, PathBuf)> = std::fs::read_dir(dir)
         .unwrap()
@@ -146,8 +153,7 @@ fn main() {
                     continue;
                 }
                 let target = f64::from(truth[[i, j]] - bicubic[[i, j]]);
-                let p =
-                    class_of(&f, r, classes) * FACTOR * FACTOR + (i % FACTOR) * FACTOR + j % FACTOR;
+                let p = slot(&f, r, classes, i, j);
                 for a in 0..n {
                     atb[p][a] += f[a] * target;
                     for b in 0..=a {
@@ -192,20 +198,15 @@ fn main() {
         let pred = Array2::from_shape_fn((rows, cols), |(i, j)| {
             let mut f = Vec::with_capacity(n);
             features(&low, i, j, r, true, &mut f);
-            let w = &weights
-                [class_of(&f, r, classes) * FACTOR * FACTOR + (i % FACTOR) * FACTOR + j % FACTOR];
+            let w = &weights[slot(&f, r, classes, i, j)];
             gain * f.iter().zip(w).map(|(a, b)| a * b).sum::<f64>() as f32
         });
         // With `MATCHED=1`, the texture's weight is set so that the output's energy above the
         // input's Nyquist is `TEXTURE` times the prediction's (both measured on the crop).
         let texture_weight = match (&texture, std::env::var("MATCHED").is_ok()) {
             (Some(t), true) => {
-                let energy = |a: &Array2<f32>| {
-                    high_pass(a, 0.5 / FACTOR as f64)
-                        .iter()
-                        .map(|&v| f64::from(v) * f64::from(v))
-                        .sum::<f64>()
-                };
+                // Every radius from the input's Nyquist out (the spectrum's corners lie below 1).
+                let energy = |a: &Array2<f32>| band_energy(a, 0.5 / FACTOR as f64, 1.0);
                 let (ep, et) = (energy(&pred), energy(t));
                 let w = ((f64::from(texture_gain) - 1.0).max(0.0) * ep / et.max(1e-30)).sqrt();
                 eprintln!("{name}: texture weight {w:.3}");
