@@ -19,7 +19,10 @@
 //! `MATCHED=1`, `TEXTURE` is instead the ratio of the output's energy above the input's Nyquist
 //! to the prediction's own, and each crop's texture weight is solved from it (both energies as
 //! `terrasynth eval` measures the band: `analysis::band_energy`), so the texture's amplitude
-//! follows what the input predicts.
+//! follows what the input predicts. With `BASE_DIR=DIR`, the surface below the input's Nyquist
+//! is `DIR/<crop>.out.tif`'s (bicubic plus the low-pass of that output's detail) instead of
+//! bicubic, so the part of an output's error that lies below the Nyquist can be swapped for
+//! another output's (with `GAIN` 0 and `TEXTURE` 1: that output below, the served one above).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -214,9 +217,20 @@ fn main() {
             }
             _ => texture_gain,
         };
+        // With `BASE_DIR`, the surface below the input's Nyquist is that of another output of
+        // the same crop (bicubic plus its detail's low-pass) instead of bicubic.
+        let below_nyquist = std::env::var("BASE_DIR").ok().map(|dir| {
+            let other =
+                read_geotiff_file(&Path::new(&dir).join(format!("{name}.out.tif")), &limits)
+                    .unwrap()
+                    .data;
+            let detail = Array2::from_shape_fn(other.dim(), |(i, j)| other[[i, j]] - bic(i, j));
+            &other - &high_pass(&detail, 0.5 / FACTOR as f64)
+        });
         out.data = Array2::from_shape_fn((rows, cols), |(i, j)| {
             let tex = texture.as_ref().map_or(0.0, |t| texture_weight * t[[i, j]]);
-            bic(i, j) + pred[[i, j]] + tex
+            let base = below_nyquist.as_ref().map_or(bic(i, j), |b| b[[i, j]]);
+            base + pred[[i, j]] + tex
         });
         write_geotiff_file(&out, &dst.join(format!("{name}.out.tif"))).unwrap();
         eprintln!("predicted {name}");
