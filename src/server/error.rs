@@ -3,13 +3,11 @@
 //! details are logged, not sent). Overload answers (503 with `Retry-After`) are not failures: they
 //! are never logged as errors, and carry their [`Overload`] reason to the metrics. Error responses
 //! produced outside the handlers (405, rejections of extractors, 413 of body limits) are given the
-//! same problem shape by [`problem_json`]. Start-up failures are a separate type,
+//! same problem shape by [`into_problem`]. Start-up failures are a separate type,
 //! [`StartupError`].
 
 use axum::body::Body;
-use axum::extract::Request;
 use axum::http::{header, HeaderValue, StatusCode};
-use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use thiserror::Error;
@@ -243,13 +241,12 @@ impl IntoResponse for ServerError {
 /// Largest body of an error response that [`problem_json`] reads to reuse as the detail.
 const MAX_DETAIL_BYTES: usize = 4096;
 
-/// Middleware giving every error response the problem+json shape: responses with a 4xx or 5xx
-/// status that are not problem documents already (405 of the router, rejections of axum's
-/// extractors such as an invalid UTF-8 path, 413 of body limits) are rewritten as one, keeping
-/// their status and headers (`Allow`, `Retry-After`) and using a short plain-text body as the
-/// detail.
-pub async fn problem_json(req: Request, next: Next) -> Response {
-    let resp = next.run(req).await;
+/// Gives an error response the problem+json shape: a response with a 4xx or 5xx status that is
+/// not a problem document already (405 of the router, rejections of axum's extractors such as an
+/// invalid UTF-8 path, 413 of body limits) is rewritten as one, keeping its status, headers
+/// (`Allow`, `Retry-After`) and extensions and using a short plain-text body as the detail; any
+/// other response is returned as it is. The server's edge middleware runs it on every response.
+pub async fn into_problem(resp: Response) -> Response {
     let status = resp.status();
     let is_problem = resp
         .headers()
