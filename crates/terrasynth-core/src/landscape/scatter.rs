@@ -18,6 +18,7 @@
 //! scans instead of cell lookups), compared by property tests.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use ndarray::Array2;
 use serde::{Deserialize, Serialize};
@@ -349,6 +350,34 @@ fn order_key(c: &Candidate, d: f64) -> (u8, i64, i64, u64, u64, u64) {
     (phase, cj, ci, c.id, c.x.to_bits(), c.y.to_bits())
 }
 
+/// A multiply-rotate hasher (the Fx hash) for the maps of [`resolve`] and `place`, keyed by
+/// lattice cells and candidate bits: their keys come from the world's own lattice, not from a
+/// client, so SipHash's resistance to chosen keys buys nothing there, and it was a sixth of the
+/// scattering's time. Only lookups read the maps, never their order, so the hasher cannot change
+/// a result.
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_u64(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(5) ^ word).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_i64(&mut self, word: i64) {
+        self.write_u64(word as u64);
+    }
+}
+
+/// A hash map with [`CellHasher`].
+type CellMap<K, V> = HashMap<K, V, BuildHasherDefault<CellHasher>>;
+
 fn cell_of(c: &Candidate, d: f64) -> (i64, i64) {
     ((c.x / d).floor() as i64, (c.y / d).floor() as i64)
 }
@@ -366,8 +395,9 @@ pub fn resolve(cands: &[Candidate], older: &[Candidate], d: f64) -> Vec<Candidat
         return cands.to_vec();
     }
     let mut order: Vec<&Candidate> = cands.iter().collect();
-    order.sort_by_key(|c| order_key(c, d));
-    let mut bins: HashMap<(i64, i64), Vec<Candidate>> = HashMap::new();
+    // Each key once (two divisions and floors), not per comparison; stable, as `sort_by_key`.
+    order.sort_by_cached_key(|c| order_key(c, d));
+    let mut bins: CellMap<(i64, i64), Vec<Candidate>> = CellMap::default();
     for o in older {
         bins.entry(cell_of(o, d)).or_default().push(*o);
     }
@@ -556,7 +586,7 @@ pub fn scatter(
 /// Resolves `cands` against `older` and keeps each accepted candidate's source, with age `age`.
 fn place(cands: &[(Candidate, usize)], older: &[Candidate], d: f64, age: u32) -> Vec<Placed> {
     let only: Vec<Candidate> = cands.iter().map(|(c, _)| *c).collect();
-    let source: HashMap<(u64, u64, u64), usize> = cands
+    let source: CellMap<(u64, u64, u64), usize> = cands
         .iter()
         .map(|(c, s)| ((c.id, c.x.to_bits(), c.y.to_bits()), *s))
         .collect();
