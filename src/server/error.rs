@@ -238,7 +238,7 @@ impl IntoResponse for ServerError {
     }
 }
 
-/// Largest body of an error response that [`problem_json`] reads to reuse as the detail.
+/// Largest body of an error response that [`into_problem`] reads to reuse as the detail.
 const MAX_DETAIL_BYTES: usize = 4096;
 
 /// Gives an error response the problem+json shape: a response with a 4xx or 5xx status that is
