@@ -286,9 +286,48 @@ fn bench_routing(c: &mut Criterion) {
     g.finish();
 }
 
+/// The default world's material weights (the splat, colour and instance tiles' per-pixel work)
+/// over 512² of the real terrain, with the terrain's own slope, northness and curvature and
+/// uniform vegetation and wetness (pixels per second).
+fn bench_materials(c: &mut Criterion) {
+    use terrasynth_core::analysis;
+    use terrasynth_core::landscape::{material_weights, LandscapeConfig, LayerInputs};
+    let l = LandscapeConfig::tienshan();
+    let grid = embedded::tienshan().expect("embedded grid");
+    let base = grid.filled().expect("valid data");
+    let z = base.slice(s![600..1112, 900..1412]).to_owned();
+    let cells = grid.georef.cell_sizes(grid.rows());
+    let cells = terrasynth_core::raster::CellSizes {
+        dx: cells.dx[600..1112].to_vec(),
+        dy: cells.dy[600..1112].to_vec(),
+    };
+    let slope = analysis::slope_degrees(&z, &cells);
+    let northness = analysis::northness(&z, &cells);
+    let curvature = analysis::curvature(&z, &cells);
+    let wetness = Array2::from_elem(z.dim(), 6.5f32);
+    let vegetation: Vec<Array2<f32>> = (0..l.species.len())
+        .map(|k| Array2::from_elem(z.dim(), 0.15 * k as f32))
+        .collect();
+    let inp = LayerInputs {
+        elevation: &z,
+        slope: &slope,
+        northness: &northness,
+        curvature: &curvature,
+        wetness: &wetness,
+        vegetation: &vegetation,
+        classes: &[],
+        origin: (1_545_000, 2_975_000),
+        pixel_m: 9.55,
+    };
+    let mut g = c.benchmark_group("material_weights");
+    g.throughput(Throughput::Elements(z.len() as u64));
+    g.bench_function("512²", |b| b.iter(|| material_weights(&l, &inp)));
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing
+    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing, bench_materials
 }
 criterion_main!(benches);

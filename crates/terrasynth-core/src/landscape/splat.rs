@@ -6,7 +6,7 @@
 
 use ndarray::Array2;
 
-use super::model::{LandscapeConfig, Material};
+use super::model::{LandscapeConfig, Material, Trapezoid};
 use crate::dictionary::rng::{hash2, mix64, to_unit_f64};
 
 /// The parameters of a block of pixels, all arrays of one shape.
@@ -36,20 +36,218 @@ pub struct LayerInputs<'a> {
 
 /// Value noise in [−1, 1] at Mercator metres `(x, y)` with wavelength `scale` (smoothstep
 /// interpolation of hashed lattice values).
+#[cfg(test)]
 fn value_noise(seed: u64, x: f64, y: f64, scale: f64) -> f32 {
     let (u, v) = (x / scale, y / scale);
     let (i, j) = (u.floor(), v.floor());
-    let (fu, fv) = (u - i, v - j);
-    let (i, j) = (i as i64, j as i64);
+    interpolate(&lattice(seed, i as i64, j as i64), u - i, v - j)
+}
+
+/// The hashed values in [−1, 1] at the corners `(i, j)`, `(i + 1, j)`, `(i, j + 1)` and
+/// `(i + 1, j + 1)` of a lattice cell.
+fn lattice(seed: u64, i: i64, j: i64) -> [f64; 4] {
     let h = |a: i64, b: i64| 2.0 * to_unit_f64(hash2(seed, a, b)) - 1.0;
+    [h(i, j), h(i + 1, j), h(i, j + 1), h(i + 1, j + 1)]
+}
+
+/// Smoothstep interpolation of a lattice cell's corner values at fractions `(fu, fv)`.
+fn interpolate(h: &[f64; 4], fu: f64, fv: f64) -> f32 {
     let s = |t: f64| t * t * (3.0 - 2.0 * t);
     let (su, sv) = (s(fu), s(fv));
-    let top = h(i, j) + (h(i + 1, j) - h(i, j)) * su;
-    let bot = h(i, j + 1) + (h(i + 1, j + 1) - h(i, j + 1)) * su;
+    let top = h[0] + (h[1] - h[0]) * su;
+    let bot = h[2] + (h[3] - h[2]) * su;
     (top + (bot - top) * sv) as f32
 }
 
-/// The unnormalised weight of material `m` at one pixel.
+/// [`value_noise`] of one seed and wavelength along a sweep of nearby points: the corner values
+/// of the last lattice cell are kept, so that a row of pixels hashes each cell once. Equal bit
+/// for bit to `value_noise`.
+struct SweptNoise {
+    seed: u64,
+    scale: f64,
+    cell: Option<(i64, i64, [f64; 4])>,
+}
+
+impl SweptNoise {
+    fn new(seed: u64, scale: f64) -> Self {
+        Self {
+            seed,
+            scale,
+            cell: None,
+        }
+    }
+
+    fn at(&mut self, x: f64, y: f64) -> f32 {
+        let (u, v) = (x / self.scale, y / self.scale);
+        let (i, j) = (u.floor(), v.floor());
+        let (ci, cj) = (i as i64, j as i64);
+        let corners = match self.cell {
+            Some((a, b, h)) if a == ci && b == cj => h,
+            _ => {
+                let h = lattice(self.seed, ci, cj);
+                self.cell = Some((ci, cj, h));
+                h
+            }
+        };
+        interpolate(&corners, u - i, v - j)
+    }
+}
+
+/// One material's weight terms with their inputs resolved once per block: the grid each
+/// vegetation, class and biome term reads (`None`: the term reads 0), in the order
+/// `raw_weight` multiplies them.
+struct CompiledMaterial<'a> {
+    material: &'a Material,
+    vegetation: Vec<(Option<&'a Array2<f32>>, &'a Trapezoid)>,
+    class: Vec<(Option<&'a Array2<f32>>, &'a Trapezoid)>,
+    biome: Vec<(Option<&'a Array2<f32>>, &'a Trapezoid)>,
+    noise: Option<SweptNoise>,
+}
+
+impl<'a> CompiledMaterial<'a> {
+    fn new(k: usize, m: &'a Material, cfg: &'a LandscapeConfig, inp: &LayerInputs<'a>) -> Self {
+        let vegetation = m
+            .vegetation
+            .iter()
+            .map(|(name, t)| {
+                let grid = cfg
+                    .species
+                    .iter()
+                    .position(|sp| &sp.name == name)
+                    .and_then(|k| inp.vegetation.get(k));
+                (grid, t)
+            })
+            .collect();
+        let class = m
+            .class
+            .iter()
+            .map(|(name, t)| {
+                let grid = inp.classes.iter().find(|(n, _)| n == name).map(|(_, a)| a);
+                (grid, t)
+            })
+            .collect();
+        let biome = m
+            .biome
+            .iter()
+            .map(|(name, t)| {
+                let grid = inp
+                    .classes
+                    .iter()
+                    .find(|(n, _)| {
+                        n.strip_prefix(super::vegetation::BIOME_PREFIX) == Some(name.as_str())
+                    })
+                    .map(|(_, a)| a);
+                (grid, t)
+            })
+            .collect();
+        let noise = (m.spread > 0.0)
+            .then(|| SweptNoise::new(mix64(0x5b1a7 ^ k as u64), f64::from(m.spread_scale_m)));
+        Self {
+            material: m,
+            vegetation,
+            class,
+            biome,
+            noise,
+        }
+    }
+
+    /// The material's modulated weights along row `r` of the block into `v` (one per column):
+    /// `raw_weight` times the noise factor, term by term over the row (each pixel's product
+    /// taken in `raw_weight`'s order). `y` is the row's Mercator metres.
+    fn weights_of_row(&mut self, inp: &LayerInputs<'_>, r: usize, y: f64, v: &mut [f32]) {
+        let m = self.material;
+        v.fill(1.0);
+        for (t, grid) in [
+            (m.elevation, inp.elevation),
+            (m.slope, inp.slope),
+            (m.northness, inp.northness),
+            (m.curvature, inp.curvature),
+            (m.wetness, inp.wetness),
+        ] {
+            if let Some(t) = t {
+                multiply_row(v, &t, Some(grid), r);
+            }
+        }
+        for terms in [&self.vegetation, &self.class, &self.biome] {
+            for (grid, t) in terms {
+                multiply_row(v, t, *grid, r);
+            }
+        }
+        if let Some(noise) = &mut self.noise {
+            for (c, o) in v.iter_mut().enumerate() {
+                if *o > 0.0 {
+                    let x = ((inp.origin.1 + c as i64) as f64 + 0.5) * inp.pixel_m;
+                    *o *= (1.0 + m.spread * noise.at(x, y)).max(0.0);
+                }
+            }
+        }
+    }
+}
+
+/// Multiplies `v` by the weight of trapezoid `t` of row `r` of `grid` (`None`: of 0).
+fn multiply_row(v: &mut [f32], t: &Trapezoid, grid: Option<&Array2<f32>>, r: usize) {
+    match grid {
+        Some(a) => {
+            for (o, &x) in v.iter_mut().zip(a.row(r)) {
+                *o *= t.weight(x);
+            }
+        }
+        None => {
+            let w = t.weight(0.0);
+            for o in v.iter_mut() {
+                *o *= w;
+            }
+        }
+    }
+}
+
+/// Normalised material weights (one grid per material, summing to 1 at every pixel). Each
+/// material's terms are resolved to their grids once ([`CompiledMaterial`]) and its noise keeps
+/// the lattice cell it last read; equal bit for bit to the plain per-pixel evaluation.
+pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Array2<f32>> {
+    let (rows, cols) = inp.elevation.dim();
+    let nm = cfg.materials.len();
+    let fallback = cfg.fallback_index();
+    let mut compiled: Vec<CompiledMaterial<'_>> = cfg
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(k, m)| CompiledMaterial::new(k, m, cfg, inp))
+        .collect();
+    let mut out: Vec<Array2<f32>> = (0..nm).map(|_| Array2::zeros((rows, cols))).collect();
+    if cols == 0 {
+        return out;
+    }
+    // Row `r`'s weights, material after material, and their sums.
+    let mut w = vec![0.0f32; nm * cols];
+    let mut total = vec![0.0f32; cols];
+    for r in 0..rows {
+        let y = ((inp.origin.0 + r as i64) as f64 + 0.5) * inp.pixel_m;
+        total.fill(0.0);
+        for (row, m) in w.chunks_exact_mut(cols).zip(&mut compiled) {
+            m.weights_of_row(inp, r, y, row);
+            for (t, &v) in total.iter_mut().zip(row.iter()) {
+                *t += v;
+            }
+        }
+        for (k, (o, row)) in out.iter_mut().zip(w.chunks_exact(cols)).enumerate() {
+            let mut o = o.row_mut(r);
+            for ((o, &v), &t) in o.iter_mut().zip(row).zip(&total) {
+                *o = if t > 0.0 {
+                    v / t
+                } else if k == fallback {
+                    1.0
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+    out
+}
+
+/// The unnormalised weight of material `m` at one pixel (the plain evaluation).
+#[cfg(test)]
 #[allow(clippy::too_many_arguments)]
 fn raw_weight(
     m: &Material,
@@ -92,8 +290,10 @@ fn raw_weight(
     out
 }
 
-/// Normalised material weights (one grid per material, summing to 1 at every pixel).
-pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Array2<f32>> {
+/// [`material_weights`] written plainly, every term looked up by name at every pixel: the
+/// reference the compiled version is tested against.
+#[cfg(test)]
+fn material_weights_naive(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Array2<f32>> {
     let (rows, cols) = inp.elevation.dim();
     let nm = cfg.materials.len();
     let fallback = cfg.fallback_index();
@@ -285,6 +485,109 @@ mod tests {
                 (w[1][[0, c]] - b).abs() < 1e-5,
                 "scree {c}: {}",
                 w[1][[0, c]]
+            );
+        }
+    }
+
+    /// A landscape whose materials use every kind of term: ranges of every parameter, a
+    /// species term (and one naming a species the block lacks), class and biome terms (and ones
+    /// naming grids the block lacks), noise of several wavelengths, and one material admitting
+    /// nothing, so that some pixels fall back.
+    const ALL_TERMS: &str = r#"
+        [[species]]
+        name = "pine"
+        [[species]]
+        name = "fern"
+        [[materials]]
+        name = "rock"
+        colour = [120, 112, 105]
+        slope = { min = 18, max = 91, falloff = 12 }
+        elevation = { min = 100, max = 900, falloff = 150 }
+        spread = 0.4
+        spread_scale_m = 700
+        [[materials]]
+        name = "forest"
+        colour = [45, 75, 40]
+        vegetation = { pine = { min = 0.05, max = 1.01, falloff = 0.3 }, fern = { min = -1, max = 0.8, falloff = 0.3 } }
+        northness = { min = -0.5, max = 1.0, falloff = 0.2 }
+        spread = 0.2
+        spread_scale_m = 90
+        [[materials]]
+        name = "marsh"
+        colour = [70, 95, 110]
+        wetness = { min = 3.0, max = 30, falloff = 1 }
+        curvature = { min = -1, max = 0.002, falloff = 0.001 }
+        class.wet = { min = 0.2, max = 1.0, falloff = 0.1 }
+        biome.lowland = { min = 0.1, max = 1.0 }
+        [[materials]]
+        name = "missing"
+        colour = [1, 2, 3]
+        class.absent = { min = 0.5, max = 1.0 }
+        biome.absent = { min = -1.0, max = 1.0 }
+        spread = 0.9
+        spread_scale_m = 40
+    "#;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+        #[test]
+        fn compiled_weights_equal_the_plain_evaluation_bit_for_bit(
+            rows in 0usize..24,
+            cols in 0usize..24,
+            row0 in -3000i64..3000,
+            col0 in -3000i64..3000,
+            pixel_m in 0.5f64..60.0,
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            let cfg: LandscapeConfig = toml::from_str(ALL_TERMS).unwrap();
+            let grid = |k: u64, lo: f32, hi: f32| {
+                Array2::from_shape_fn((rows, cols), |(r, c)| {
+                    let u = to_unit_f64(hash2(seed ^ k, r as i64, c as i64)) as f32;
+                    lo + (hi - lo) * u
+                })
+            };
+            let (elevation, slope) = (grid(1, 0.0, 1000.0), grid(2, 0.0, 60.0));
+            let (northness, curvature) = (grid(3, -1.0, 1.0), grid(4, -0.004, 0.004));
+            let wetness = grid(5, 1.0, 9.0);
+            // Only the first species has a grid: the `fern` term reads 0.
+            let vegetation = vec![grid(6, 0.0, 1.0)];
+            let classes = vec![
+                ("wet".to_string(), grid(7, 0.0, 1.0)),
+                (super::super::vegetation::biome_key("lowland"), grid(8, 0.0, 1.0)),
+            ];
+            let inp = LayerInputs {
+                elevation: &elevation,
+                slope: &slope,
+                northness: &northness,
+                curvature: &curvature,
+                wetness: &wetness,
+                vegetation: &vegetation,
+                classes: &classes,
+                origin: (row0, col0),
+                pixel_m,
+            };
+            let fast = material_weights(&cfg, &inp);
+            let naive = material_weights_naive(&cfg, &inp);
+            proptest::prop_assert_eq!(fast.len(), naive.len());
+            for (k, (a, b)) in fast.iter().zip(&naive).enumerate() {
+                for ((r, c), v) in a.indexed_iter() {
+                    proptest::prop_assert_eq!(
+                        v.to_bits(), b[[r, c]].to_bits(), "material {} at ({}, {})", k, r, c
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn swept_noise_equals_the_noise_bit_for_bit() {
+        let mut swept = SweptNoise::new(11, 350.0);
+        for k in -400..400 {
+            let (x, y) = (f64::from(k) * 7.3, 1000.0 + f64::from(k / 50) * 91.1);
+            assert_eq!(
+                swept.at(x, y).to_bits(),
+                value_noise(11, x, y, 350.0).to_bits(),
+                "({x}, {y})"
             );
         }
     }
