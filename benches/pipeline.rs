@@ -287,9 +287,10 @@ fn bench_routing(c: &mut Criterion) {
 }
 
 /// The default world's material weights (the splat, colour and instance tiles' per-pixel work)
-/// over 512² of the real terrain, with the terrain's own slope, northness and curvature and
-/// uniform vegetation and wetness (pixels per second).
-fn bench_materials(c: &mut Criterion) {
+/// and every species' niche suitability (the vegetation tiles') over 512² of the real terrain,
+/// with the terrain's own slope, northness and curvature and uniform vegetation and wetness
+/// (pixels per second).
+fn bench_layers(c: &mut Criterion) {
     use terrasynth_core::analysis;
     use terrasynth_core::landscape::{material_weights, LandscapeConfig, LayerInputs};
     let l = LandscapeConfig::tienshan();
@@ -319,15 +320,29 @@ fn bench_materials(c: &mut Criterion) {
         origin: (1_545_000, 2_975_000),
         pixel_m: 9.55,
     };
-    let mut g = c.benchmark_group("material_weights");
+    let mut g = c.benchmark_group("layers/512²");
     g.throughput(Throughput::Elements(z.len() as u64));
-    g.bench_function("512²", |b| b.iter(|| material_weights(&l, &inp)));
+    g.bench_function("material_weights", |b| {
+        b.iter(|| material_weights(&l, &inp))
+    });
+    g.bench_function("suitability", |b| {
+        b.iter(|| {
+            l.species
+                .iter()
+                .map(|sp| {
+                    terrasynth_core::landscape::vegetation::suitability_grid(
+                        sp, &z, &slope, &northness, &wetness,
+                    )
+                })
+                .collect::<Vec<_>>()
+        })
+    });
     g.finish();
 }
 
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing, bench_materials
+    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing, bench_layers
 }
 criterion_main!(benches);

@@ -274,7 +274,8 @@ pub fn cluster_densities_naive(
 }
 
 /// Suitability grid of `sp` on `elevation` given slope (degrees), northness and wetness grids of
-/// the same shape.
+/// the same shape: [`suitability`] at every pixel, computed term by term over the grid (each
+/// pixel's product in `suitability`'s order, so the same bits).
 pub fn suitability_grid(
     sp: &Species,
     elevation: &Array2<f32>,
@@ -282,11 +283,20 @@ pub fn suitability_grid(
     northness: &Array2<f32>,
     wetness: &Array2<f32>,
 ) -> Array2<f32> {
-    ndarray::Zip::from(elevation)
-        .and(slope_deg)
-        .and(northness)
-        .and(wetness)
-        .par_map_collect(|&e, &s, &n, &w| suitability(sp, e, s, n, w))
+    let mut out = Array2::from_elem(elevation.dim(), 1.0f32);
+    for (t, grid) in [
+        (sp.elevation, elevation),
+        (sp.slope, slope_deg),
+        (sp.northness, northness),
+        (sp.wetness, wetness),
+    ] {
+        if let Some(t) = t {
+            ndarray::Zip::from(&mut out)
+                .and(grid)
+                .for_each(|o, &x| *o *= t.weight(x));
+        }
+    }
+    out
 }
 
 /// Patchy densities of every species on a grid whose cell `(0, 0)` is global `(row0, col0)`:
@@ -427,6 +437,44 @@ mod tests {
         assert_eq!(d[[2, 1]], 0.25);
         // Column 2 of rows 1–2: all weights 0, the density is lost.
         assert_eq!((d[[1, 2]], d[[2, 2]]), (0.0, 0.0));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        #[test]
+        fn suitability_grid_equals_the_pointwise_suitability_bit_for_bit(
+            rows in 0usize..24,
+            cols in 0usize..24,
+            salt in 0u64..1000,
+        ) {
+            let sp: Species = toml::from_str(
+                r#"
+                name = "spruce"
+                elevation = { min = 1500, max = 2900, falloff = 250 }
+                slope = { min = -1, max = 40, falloff = 8 }
+                northness = { min = -0.2, max = 1.1, falloff = 0.4 }
+                wetness = { min = 3, max = 30, falloff = 1 }
+                "#,
+            )
+            .unwrap();
+            let grid = |k: u64, lo: f32, hi: f32| {
+                Array2::from_shape_fn((rows, cols), |(r, c)| {
+                    let h = mix64(salt ^ (k << 48) ^ ((r as u64) << 24) ^ c as u64);
+                    lo + (hi - lo) * ((h >> 40) as f32 / (1u64 << 24) as f32)
+                })
+            };
+            let (e, s, n, w) = (
+                grid(1, 1000.0, 3400.0),
+                grid(2, 0.0, 60.0),
+                grid(3, -1.0, 1.0),
+                grid(4, 1.0, 9.0),
+            );
+            let fast = suitability_grid(&sp, &e, &s, &n, &w);
+            for ((r, c), v) in fast.indexed_iter() {
+                let want = suitability(&sp, e[[r, c]], s[[r, c]], n[[r, c]], w[[r, c]]);
+                proptest::prop_assert_eq!(v.to_bits(), want.to_bits(), "({}, {})", r, c);
+            }
+        }
     }
 
     proptest::proptest! {
