@@ -256,11 +256,9 @@ fn bench_gradient(c: &mut Criterion) {
     g.finish();
 }
 
-/// The drainage layer's routing of one amplified tile's region up to zoom 13 (the tile and its
-/// 128-px halo: 512²) on a window of the real terrain: Priority-Flood+ε, D8 receivers and the
-/// accumulation (cells per second).
-fn bench_routing(c: &mut Criterion) {
-    use terrasynth_core::analysis;
+/// 512² of the real terrain (rows 600–1111, columns 900–1411 of the embedded grid) and its
+/// cell sizes: the routing and layer benches' input.
+fn real_terrain_512() -> (Array2<f32>, terrasynth_core::raster::CellSizes) {
     let grid = embedded::tienshan().expect("embedded grid");
     let base = grid.filled().expect("valid data");
     let z = base.slice(s![600..1112, 900..1412]).to_owned();
@@ -269,6 +267,15 @@ fn bench_routing(c: &mut Criterion) {
         dx: cells.dx[600..1112].to_vec(),
         dy: cells.dy[600..1112].to_vec(),
     };
+    (z, cells)
+}
+
+/// The drainage layer's routing of one amplified tile's region up to zoom 13 (the tile and its
+/// 128-px halo: 512²) on a window of the real terrain: Priority-Flood+ε, D8 receivers and the
+/// accumulation (cells per second).
+fn bench_routing(c: &mut Criterion) {
+    use terrasynth_core::analysis;
+    let (z, cells) = real_terrain_512();
     let filled = analysis::priority_flood_fill(&z);
     let receivers = analysis::d8_receivers(&filled, &cells);
     let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
@@ -294,14 +301,7 @@ fn bench_layers(c: &mut Criterion) {
     use terrasynth_core::analysis;
     use terrasynth_core::landscape::{material_weights, LandscapeConfig, LayerInputs};
     let l = LandscapeConfig::tienshan();
-    let grid = embedded::tienshan().expect("embedded grid");
-    let base = grid.filled().expect("valid data");
-    let z = base.slice(s![600..1112, 900..1412]).to_owned();
-    let cells = grid.georef.cell_sizes(grid.rows());
-    let cells = terrasynth_core::raster::CellSizes {
-        dx: cells.dx[600..1112].to_vec(),
-        dy: cells.dy[600..1112].to_vec(),
-    };
+    let (z, cells) = real_terrain_512();
     let slope = analysis::slope_degrees(&z, &cells);
     let northness = analysis::northness(&z, &cells);
     let curvature = analysis::curvature(&z, &cells);
