@@ -41,7 +41,7 @@ use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
 pub use error::{ServerError, StartupError};
-pub use startup::{return_large_buffers_to_os, serve};
+pub use startup::serve;
 pub use state::{AppState, LiveWorlds};
 pub use worlds::{load_worlds, share_shortfall, Worlds};
 

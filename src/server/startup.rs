@@ -111,26 +111,6 @@ pub async fn shutdown_signal() {
     tracing::info!("shutting down");
 }
 
-/// Allocations at or above this size are mapped from the OS and given back when freed.
-pub const MMAP_THRESHOLD_BYTES: usize = 512 * 1024;
-
-/// Makes the allocator give large buffers back to the OS when they are freed. glibc otherwise
-/// raises its mmap threshold after the first large free, so the transient grids of the
-/// whole-world layers and of halo routing stay in the heap: measured on the load test, peak RSS
-/// 777 MiB without this, 583 MiB with it, warm throughput unchanged. A no-op off glibc. Call it
-/// before the server starts allocating.
-pub fn return_large_buffers_to_os() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    {
-        let bytes = libc::c_int::try_from(MMAP_THRESHOLD_BYTES).unwrap_or(libc::c_int::MAX);
-        // SAFETY: mallopt(3) only changes allocator tuning; M_MMAP_THRESHOLD takes a size.
-        let ok = unsafe { libc::mallopt(libc::M_MMAP_THRESHOLD, bytes) };
-        if ok != 1 {
-            tracing::debug!("mallopt(M_MMAP_THRESHOLD) refused");
-        }
-    }
-}
-
 /// Binds `addr`, with an error that says what to do when it is taken.
 async fn bind(addr: &str) -> Result<tokio::net::TcpListener, StartupError> {
     tokio::net::TcpListener::bind(addr)
