@@ -35,7 +35,8 @@ pub struct LayerInputs<'a> {
 }
 
 /// Value noise in [−1, 1] at Mercator metres `(x, y)` with wavelength `scale` (smoothstep
-/// interpolation of hashed lattice values).
+/// interpolation of hashed lattice values), point by point: the reference of [`SweptNoise`],
+/// which the weights use.
 #[cfg(test)]
 fn value_noise(seed: u64, x: f64, y: f64, scale: f64) -> f32 {
     let (u, v) = (x / scale, y / scale);
