@@ -142,27 +142,13 @@ impl<'a> CompiledMaterial<'a> {
                 (grid, t)
             })
             .collect();
-        let class = m
-            .class
-            .iter()
-            .map(|(name, t)| {
-                let grid = inp.classes.iter().find(|(n, _)| n == name).map(|(_, a)| a);
-                (grid, t)
-            })
-            .collect();
+        // Class weights by name, biome weights under their key (`biome.<name>`).
+        let named = |key: &str| inp.classes.iter().find(|(n, _)| n == key).map(|(_, a)| a);
+        let class = m.class.iter().map(|(name, t)| (named(name), t)).collect();
         let biome = m
             .biome
             .iter()
-            .map(|(name, t)| {
-                let grid = inp
-                    .classes
-                    .iter()
-                    .find(|(n, _)| {
-                        n.strip_prefix(super::vegetation::BIOME_PREFIX) == Some(name.as_str())
-                    })
-                    .map(|(_, a)| a);
-                (grid, t)
-            })
+            .map(|(name, t)| (named(&super::vegetation::biome_key(name)), t))
             .collect();
         let cols = inp.elevation.ncols() as i64;
         let noise = (m.spread > 0.0).then(|| {
