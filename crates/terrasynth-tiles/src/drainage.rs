@@ -138,6 +138,17 @@ impl DrainageLevels {
         // pixels.
         let h = drain_halo(z);
         let region = w.grown(h);
+        // The parent level first: a chain of cold levels waits here, level under level, and a
+        // level that waits holds none of its own region's grids yet (computed after the wait,
+        // the routing's buffers live one level at a time instead of down the whole chain).
+        let pw = Window::new(
+            region.col0 / 2,
+            region.row0 / 2,
+            region.cols / 2,
+            region.rows / 2,
+        );
+        let aw = Window::new(pw.col0 - 1, pw.row0 - 1, pw.cols + 2, pw.rows + 2);
+        let pa = self.window(elevation, whole, water, z - 1, aw)?;
         let heights = elevation.window(z, region)?;
         let cells = extent.cell_sizes(z, region.row0, region.rows);
         let filled = analysis::priority_flood_fill(&heights);
@@ -160,16 +171,8 @@ impl DrainageLevels {
         });
         // Parent inflow: parent pixels on the ring around the region's parent window whose
         // steepest descent points into it.
-        let pw = Window::new(
-            region.col0 / 2,
-            region.row0 / 2,
-            region.cols / 2,
-            region.rows / 2,
-        );
         let ew = Window::new(pw.col0 - 2, pw.row0 - 2, pw.cols + 4, pw.rows + 4);
         let pe = elevation.window(z - 1, ew)?;
-        let aw = Window::new(pw.col0 - 1, pw.row0 - 1, pw.cols + 2, pw.rows + 2);
-        let pa = self.window(elevation, whole, water, z - 1, aw)?;
         let pcells = extent.cell_sizes(z - 1, ew.row0, ew.rows);
         for (qr, qc) in ring(aw) {
             // (qr, qc) are global parent coordinates on the ring.
