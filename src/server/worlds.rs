@@ -426,7 +426,7 @@ pub fn world_from(resolved: ResolvedWorld, cache_bytes: u64) -> Result<World, Ti
 /// Prepares the whole-world landscape layers of `worlds` one after the other on a background
 /// thread, so that the first landscape tile of a world does not pay for them (a request that
 /// arrives first waits for the same computation). With a `store`, each world keeps its layers
-/// there ([`StoredLayers`], set before this returns, so that a request that starts them first
+/// there (`StoredLayers`, set before this returns, so that a request that starts them first
 /// uses it too): read at the next start instead of computed (1.5 s for the default world).
 pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
     for world in &worlds {
@@ -444,8 +444,8 @@ pub fn prepare_landscapes(worlds: Vec<Arc<World>>, store: Option<Store>) {
     }
 }
 
-/// Keeps `world`'s whole-world layers in `store` ([`StoredLayers`]); nothing without a store or
-/// when the running executable cannot be examined ([`build_identity`]). A world keeps the first
+/// Keeps `world`'s whole-world layers in `store` (`StoredLayers`); nothing without a store or
+/// when the running executable cannot be examined (`build_identity`). A world keeps the first
 /// store it is given.
 pub fn keep_landscape(world: &World, store: Option<&Store>) {
     if let (Some(store), Some(build)) = (store, build_identity()) {

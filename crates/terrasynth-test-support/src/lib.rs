@@ -1,7 +1,7 @@
 //! Fixtures and helpers shared by terrasynth's test binaries (the core crate's and the root
 //! package's), written once: synthetic terrain, small dictionaries and worlds, raster files in
 //! every upload format ([this module](self)), measures of the landscape layers' coherence with
-//! the served elevation ([`coherence`]), a Mapbox Vector Tile reader ([`mvt`]), and `terrasynth serve` processes on free ports with small
+//! the served elevation (`coherence`, with the `tiles` feature), a Mapbox Vector Tile reader ([`mvt`]), and `terrasynth serve` processes on free ports with small
 //! HTTP helpers ([`process`]). Test code: it panics on failure like the tests that use it.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 

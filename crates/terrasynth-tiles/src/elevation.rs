@@ -12,7 +12,7 @@
 //!
 //! Amplified pixels outside the base's coverage are the fill, exactly. Cells under water keep
 //! their bed elevation; where the bed is exactly flat under water (a
-//! flat lake bed), amplified levels add no detail ([`calm_flat_water`]). The sea and lakes of the
+//! flat lake bed), amplified levels add no detail (`calm_flat_water`). The sea and lakes of the
 //! native zoom are computed here once ([`ElevationLevels::base_water`]) since they depend only on
 //! the native-zoom elevation and coverage.
 //!
@@ -20,10 +20,10 @@
 //! computed (an area nobody has visited), the tile does not wait for whole parent tiles down to
 //! the native zoom: its parent *window* is amplified directly from the grandparent window it
 //! needs, and so on down the chain, each window a little larger than half its child (the halo
-//! of [`Amplifier::parent_window_for`]) instead of whole 256² tiles: about an eighth of the work
+//! of `parent_window_for`) instead of whole 256² tiles: about an eighth of the work
 //! for a zoom-14 tile six levels above its native zoom. Window invariance makes the values
 //! bit-identical to the tile path. Once the tile is done, the parent tiles themselves are
-//! computed in the background on a pool shared by every world ([`Prefill`]), so that the
+//! computed in the background on a pool shared by every world (`Prefill`), so that the
 //! neighbours that follow find their parents cached; every level is a cancellation point, and
 //! an abandoned tile queues nothing.
 
@@ -129,7 +129,7 @@ fn prefill_pool() -> Option<&'static rayon::ThreadPool> {
 pub const MAX_WORLD_PIXELS: usize = 1 << 26;
 
 /// The sea and lakes of the native zoom's whole-world window
-/// ([`terrasynth_core::landscape::water`] on the native-zoom elevation and coverage).
+/// ([`terrasynth_core::landscape::water`](fn@terrasynth_core::landscape::water) on the native-zoom elevation and coverage).
 #[derive(Debug)]
 pub struct BaseWater {
     /// The window of the native zoom's plane they cover.

@@ -7,7 +7,7 @@
 //! [`base_layers`], steered by painted species controls, [`controls`], per-tile [`terrain`] derivatives and [`materials`]), a world composed of them
 //! ([`world`]) with a dictionary per zoom band ([`chain`]) or painted biomes ([`biomes`]), instances of plants and rocks as vector
 //! tiles ([`instances`]), contour lines of the served elevation as vector tiles ([`contours`]),
-//! tile requests ([`request`]), renderers ([`render`]), encoders
+//! tile requests ([`request`]), renderers ([`render`](mod@render)), encoders
 //! ([`encode`]), TileJSON ([`tilejson`]), styles ([`style`]) and point queries of the served
 //! elevation ([`point`]). Computations are coalesced and cancelled
 //! cooperatively when nobody waits for them any more ([`cancel`]).

@@ -2,7 +2,7 @@
 //! surface level (m, NaN where dry) and a sea flag (1 sea, 0 lake or dry).
 //!
 //! - **Native zoom `z_b`**: cut from the whole-world sea and lakes
-//!   ([`terrasynth_core::landscape::water`], computed once by
+//!   ([`terrasynth_core::landscape::water`](fn@terrasynth_core::landscape::water), computed once by
 //!   [`ElevationLevels::base_water`]); depth = level − bed.
 //! - **Amplified zooms**: each pixel takes the level and sea flag of its parent pixel (water
 //!   surfaces are flat: the level never gets detail) and its depth is that level minus the

@@ -3,10 +3,10 @@
 //! archive holds one tile type), and `export merge`, which joins the parts a sharded export
 //! (`--shard I/N`) wrote.
 //!
-//! Tiles are produced by the tiles crate's [`render`] from requests parsed by [`parse_request`]
+//! Tiles are produced by the tiles crate's [`render`](fn@terrasynth_tiles::render) from requests parsed by [`parse_request`]
 //! from the same path the server serves (`{layer}/{z}/{x}/{y}.{ext}` without query), so an
 //! exported tile is byte-identical to the served one. Tiles are rendered in parallel in chunks
-//! (on plain threads, [`on_threads`]; their kernels use rayon's pool) and written in PMTiles
+//! (on plain threads, `on_threads`; their kernels use rayon's pool) and written in PMTiles
 //! tile-id (Hilbert) order; shard `I` of `N` takes the `I`-th of `N` equal consecutive slices of
 //! that order, so that a merge is a concatenation. Archives are
 //! written under a temporary name (`.NAME.tmp-PID` beside the output) and renamed when complete:

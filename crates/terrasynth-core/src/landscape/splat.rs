@@ -215,7 +215,7 @@ fn multiply_row(v: &mut [f32], t: &Trapezoid, grid: Option<&Array2<f32>>, r: usi
 }
 
 /// Normalised material weights (one grid per material, summing to 1 at every pixel). Each
-/// material's terms are resolved to their grids once ([`CompiledMaterial`]) and its noise keeps
+/// material's terms are resolved to their grids once (`CompiledMaterial`) and its noise keeps
 /// the lattice cell it last read; equal bit for bit to the plain per-pixel evaluation.
 pub fn material_weights(cfg: &LandscapeConfig, inp: &LayerInputs<'_>) -> Vec<Array2<f32>> {
     let (rows, cols) = inp.elevation.dim();
