@@ -157,18 +157,27 @@ impl DrainageLevels {
         // ends where it enters the sea.
         let coverage = elevation.coverage_window(z, region)?;
         let wet = water.window(elevation, z, region)?;
-        for ((r, c), code) in receivers.indexed_iter_mut() {
-            if wet[SEA][[r, c]] > 0.0 {
-                *code = analysis::D8_NONE;
-            }
+        ndarray::Zip::from(&mut receivers)
+            .and(&wet[SEA])
+            .for_each(|code, &sea| {
+                if sea > 0.0 {
+                    *code = analysis::D8_NONE;
+                }
+            });
+        let mut sources = Array2::zeros(heights.dim());
+        for (r, mut row) in sources.rows_mut().into_iter().enumerate() {
+            let area = cells.area(r);
+            ndarray::Zip::from(&mut row)
+                .and(coverage.row(r))
+                .and(wet[SEA].row(r))
+                .for_each(|s, &cover, &sea| {
+                    *s = if crate::coverage::uncovered(cover) || sea > 0.0 {
+                        0.0
+                    } else {
+                        area
+                    };
+                });
         }
-        let mut sources = Array2::from_shape_fn(heights.dim(), |(r, c)| {
-            if crate::coverage::uncovered(coverage[[r, c]]) || wet[SEA][[r, c]] > 0.0 {
-                0.0
-            } else {
-                cells.area(r)
-            }
-        });
         // Parent inflow: parent pixels on the ring around the region's parent window whose
         // steepest descent points into it.
         let ew = Window::new(pw.col0 - 2, pw.row0 - 2, pw.cols + 4, pw.rows + 4);

@@ -8,7 +8,7 @@ use ndarray::Array2;
 use crate::raster::CellSizes;
 
 /// Row-major values of `z` (borrowed when `z` is already in standard layout).
-pub(crate) fn values(z: &Array2<f32>) -> Cow<'_, [f32]> {
+pub(crate) fn values<T: Copy>(z: &Array2<T>) -> Cow<'_, [T]> {
     match z.as_slice() {
         Some(s) => Cow::Borrowed(s),
         None => Cow::Owned(z.iter().copied().collect()),

@@ -165,13 +165,27 @@ pub fn accumulate_sources(receivers: &Array2<u8>, sources: &Array2<f64>) -> Arra
     }
     let mut rcv = vec![no_receiver; n];
     let mut indeg = vec![0u8; n];
-    for ((r, c), &code) in receivers.indexed_iter() {
-        if code as usize >= 8 {
-            continue;
-        }
-        if let Some((nr, nc)) = neighbour(r, c, code as usize, rows, cols) {
-            let j = nr * cols + nc;
-            rcv[r * cols + c] = j as u32;
+    let codes = values(receivers);
+    // An interior cell's receiver is its index plus the direction's offset; only the border
+    // cells need the bounds checks of `neighbour`.
+    let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
+    for r in 0..rows {
+        let interior_row = r > 0 && r + 1 < rows;
+        for c in 0..cols {
+            let i = r * cols + c;
+            let code = codes[i] as usize;
+            if code >= 8 {
+                continue;
+            }
+            let j = if interior_row && c > 0 && c + 1 < cols {
+                i.wrapping_add_signed(offsets[code])
+            } else {
+                match neighbour(r, c, code, rows, cols) {
+                    Some((nr, nc)) => nr * cols + nc,
+                    None => continue,
+                }
+            };
+            rcv[i] = j as u32;
             indeg[j] += 1;
         }
     }
