@@ -8,6 +8,7 @@ use ndarray::Array2;
 use terrasynth_core::landscape::{self, LandscapeConfig, LayerInputs};
 use terrasynth_core::synth::Window;
 
+use crate::cancel::join;
 use crate::classes::ClassWeights;
 use crate::coverage::mask_in_place;
 use crate::error::TileError;
@@ -79,12 +80,24 @@ pub fn material_window(
     z: u8,
     w: Window,
 ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
-    let terrain = Terrain::of(inputs.elevation, z, w)?;
-    let area = inputs
-        .drainage
-        .window(inputs.elevation, inputs.whole, inputs.water, z, w)?;
+    // The three inputs side by side: a cold window's drainage chain routes its parent levels
+    // while the window's own elevation tiles are amplified, and the vegetation waits only for
+    // what it shares with them (the same tiles, computed once).
+    let (terrain, (area, veg)) = join(
+        || Terrain::of(inputs.elevation, z, w),
+        || {
+            join(
+                || {
+                    inputs
+                        .drainage
+                        .window(inputs.elevation, inputs.whole, inputs.water, z, w)
+                },
+                || vegetation.window(inputs, z, w),
+            )
+        },
+    );
+    let (terrain, area, veg) = (terrain?, area?, veg?);
     let wet = wetness(&area);
-    let veg = vegetation.window(inputs, z, w)?;
     // Only the classes (and biomes) a material names are sampled.
     let class_weights: Vec<(String, Array2<f32>)> = if landscape
         .materials
