@@ -27,6 +27,7 @@ use terrasynth_core::synth::{AnyAmplifier, Field, LayerAtoms, Level, SynthError,
 
 use crate::base_layers::{cut, WholeWorld};
 use crate::biomes::{blend, Biomes};
+use crate::cancel::join;
 use crate::chain::Chain;
 use crate::coverage::mask_in_place;
 use crate::drainage::DrainageLevels;
@@ -161,10 +162,73 @@ impl VegetationLevels {
                 self.tile(inputs, z + 1, cx, cy).map(Some)
             });
         }
+        // The amplified densities (down the vegetation chain) and the drainage tile (down its own
+        // chain) side by side; what the two chains share is computed once.
+        let (amplified, area) = join(
+            || self.amplified(inputs, z, tx, ty),
+            || {
+                inputs
+                    .drainage
+                    .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)
+            },
+        );
+        let amplified = amplified?;
+        // The niche on the served terrain moves density inside each parent pixel's 2×2 children
+        // (the parent's density is kept where the children can hold it).
+        let terrain = Terrain::of(inputs.elevation, z, w)?;
+        let area = area?;
+        let wet = wetness(&area);
+        let viability = self.landscape.viability;
+        let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
+        let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
+        let class_weights = if species
+            .iter()
+            .any(|s| !s.class.is_empty() || !s.biome.is_empty())
+        {
+            self.classes.window(z, w)
+        } else {
+            Vec::new()
+        };
+        let mut out = Vec::with_capacity(species.len());
+        for (sp, mut d) in species.iter().zip(amplified) {
+            let mut suit = vegetation::suitability_grid(
+                sp,
+                &terrain.elevation,
+                &terrain.slope,
+                &terrain.northness,
+                &wet,
+            );
+            if let Some(f) = vegetation::class_factor(sp, &class_weights) {
+                suit *= &f;
+            }
+            vegetation::redistribute_in_blocks(&mut d, &suit, w.row0, w.col0);
+            // Then the viability step fades density on marginal ground.
+            ndarray::Zip::from(&mut d)
+                .and(&suit)
+                .for_each(|v, &s| *v *= vegetation::viability_gate(s, viability));
+            mask_in_place(&mut d, &coverage);
+            zero_under_water(&mut d, depth);
+            out.push(d);
+        }
+        Ok(out)
+    }
+
+    /// Every species' density over tile `(z, tx, ty)` of amplified zoom `z` before the niche:
+    /// amplified from the parent zoom's densities with the elevation's matches (the atoms the
+    /// elevation tile kept, when it can), or, in a biome world, every painted biome's blended.
+    fn amplified(
+        &self,
+        inputs: Inputs<'_>,
+        z: u8,
+        tx: i64,
+        ty: i64,
+    ) -> Result<Vec<Array2<f32>>, TileError> {
+        let w = tile_window(tx, ty);
+        let species = &self.landscape.species;
+        let cell = inputs.elevation.extent().level_cell_m(z - 1) as f32;
         // The same parent elevation, hence the same matches, as the elevation tile; the parent
         // window is the one the species layers read (the elevation's breaching reads further).
-        let cell = extent.level_cell_m(z - 1) as f32;
-        let amplified = match &self.biomes {
+        Ok(match &self.biomes {
             None => {
                 let amp = self.amplifiers.at(z);
                 // The elevation tile first: computing it keeps the atoms its matching found.
@@ -218,47 +282,7 @@ impl VegetationLevels {
                     })
                     .collect()
             }
-        };
-        // The niche on the served terrain moves density inside each parent pixel's 2×2 children
-        // (the parent's density is kept where the children can hold it).
-        let terrain = Terrain::of(inputs.elevation, z, w)?;
-        let area = inputs
-            .drainage
-            .tile(inputs.elevation, inputs.whole, inputs.water, z, tx, ty)?;
-        let wet = wetness(&area);
-        let viability = self.landscape.viability;
-        let coverage = inputs.elevation.coverage_tile(z, tx, ty)?;
-        let depth = &inputs.water.tile(inputs.elevation, z, tx, ty)?[DEPTH];
-        let class_weights = if species
-            .iter()
-            .any(|s| !s.class.is_empty() || !s.biome.is_empty())
-        {
-            self.classes.window(z, w)
-        } else {
-            Vec::new()
-        };
-        let mut out = Vec::with_capacity(species.len());
-        for (sp, mut d) in species.iter().zip(amplified) {
-            let mut suit = vegetation::suitability_grid(
-                sp,
-                &terrain.elevation,
-                &terrain.slope,
-                &terrain.northness,
-                &wet,
-            );
-            if let Some(f) = vegetation::class_factor(sp, &class_weights) {
-                suit *= &f;
-            }
-            vegetation::redistribute_in_blocks(&mut d, &suit, w.row0, w.col0);
-            // Then the viability step fades density on marginal ground.
-            ndarray::Zip::from(&mut d)
-                .and(&suit)
-                .for_each(|v, &s| *v *= vegetation::viability_gate(s, viability));
-            mask_in_place(&mut d, &coverage);
-            zero_under_water(&mut d, depth);
-            out.push(d);
-        }
-        Ok(out)
+        })
     }
 
     /// Every species' density over window `w` of amplified zoom `z` as amplifier `amp` makes it
