@@ -23,6 +23,9 @@
 //! is `DIR/<crop>.out.tif`'s (bicubic plus the low-pass of that output's detail) instead of
 //! bicubic, so the part of an output's error that lies below the Nyquist can be swapped for
 //! another output's (with `GAIN` 0 and `TEXTURE` 1: that output below, the served one above).
+//! With `HIGH_GAIN=K`, the prediction's part above the input's Nyquist is scaled by `K` and its
+//! part below kept: the band's energy then comes from the correlated prediction instead of
+//! texture (README, "Scaled instead of topped up").
 
 // A measurement tool: a failed unwrap aborts the run with its message.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -204,6 +207,16 @@ fn main() {
             let w = &weights[slot(&f, r, classes, i, j)];
             gain * f.iter().zip(w).map(|(a, b)| a * b).sum::<f64>() as f32
         });
+        // With `HIGH_GAIN=K`, the prediction's part above the input's Nyquist is scaled by `K`
+        // (its part below stays): the band's energy comes from the correlated prediction.
+        let pred = match std::env::var("HIGH_GAIN") {
+            Ok(k) => {
+                let k: f32 = k.parse().expect("HIGH_GAIN");
+                let high = high_pass(&pred, 0.5 / FACTOR as f64);
+                &pred + &(high * (k - 1.0))
+            }
+            Err(_) => pred,
+        };
         // With `MATCHED=1`, the texture's weight is set so that the output's energy above the
         // input's Nyquist is `TEXTURE` times the prediction's (both measured on the crop).
         let texture_weight = match (&texture, std::env::var("MATCHED").is_ok()) {
