@@ -47,7 +47,9 @@ use crate::classes::ClassWeights;
 use crate::coverage::CoverageLevels;
 use crate::error::TileError;
 use crate::extent::Extent;
-use crate::pyramid::{assemble, for_each_tile_part, overview, tile_window, LevelCache, TileKey};
+use crate::pyramid::{
+    assemble, for_each_tile_part, overview, recent_cache, tile_window, LevelCache, TileKey,
+};
 use crate::resample::mercator_window_from_valid_grid;
 
 /// The elevation levels of a world.
@@ -178,10 +180,9 @@ impl ElevationLevels {
             base_water: OnceLock::new(),
             coverage,
             cache: LevelCache::new(cache_bytes - cache_bytes / LAYER_ATOMS_SHARE),
-            layer_atoms: Cache::builder()
-                .weigher(|_, a: &Arc<LayerAtoms>| u32::try_from(a.bytes()).unwrap_or(u32::MAX))
-                .max_capacity(cache_bytes / LAYER_ATOMS_SHARE)
-                .build(),
+            layer_atoms: recent_cache(cache_bytes / LAYER_ATOMS_SHARE, |a: &Arc<LayerAtoms>| {
+                a.bytes()
+            }),
             prefill: Prefill::default(),
             me: me.clone(),
             tiles_synthesized: AtomicU64::new(0),

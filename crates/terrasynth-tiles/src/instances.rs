@@ -58,15 +58,17 @@ pub fn instances_in(world: &World, z: u8, w: Window) -> Result<Vec<Placed>, Tile
         .map(|r| halo_px(r, cell_m))
         .fold(0.0, f64::max) as i64;
     let big = w.grown(halo);
-    let species = world.vegetation_window(z, big)?;
     let needs_materials = l
         .scatter
         .iter()
         .any(|r| !r.materials.is_empty() || !r.exclude_materials.is_empty());
-    let materials = if needs_materials {
-        world.material_window(z, big)?
+    // The materials read the same vegetation window: one assembly serves both, and its inputs
+    // (terrain, drainage, vegetation) are computed side by side.
+    let (species, materials) = if needs_materials {
+        let m = world.materials_and_vegetation(z, big)?;
+        (m.vegetation, m.weights)
     } else {
-        Vec::new()
+        (world.vegetation_window(z, big)?, Vec::new())
     };
     let ground = world.elevation_window(z, w)?;
     // Nothing is scattered outside the base's coverage.

@@ -66,9 +66,22 @@ pub fn material_tile(
         z,
         tile_window(tx, ty),
     )
+    .map(|m| (m.weights, m.shade))
 }
 
-/// Normalised material weights over an arbitrary window `w` of zoom `z`, and its hillshade. Every
+/// A window's material weights, its hillshade and the species densities the weights read.
+#[derive(Debug)]
+pub struct MaterialWindow {
+    /// Normalised weights, one grid per name of [`splat_names`].
+    pub weights: Vec<Array2<f32>>,
+    /// Hillshade, 0–1.
+    pub shade: Array2<f32>,
+    /// The window's vegetation, one grid per species (what [`VegetationLevels::window`] gives).
+    pub vegetation: Vec<Array2<f32>>,
+}
+
+/// Normalised material weights over an arbitrary window `w` of zoom `z`, its hillshade and its
+/// vegetation (the instance tiles' rules read both weights and densities). Every
 /// input is per pixel (the derivatives read a one-pixel border), so the weights of a window are
 /// those of the tiles it covers, bit for bit, without computing those whole tiles (the instance
 /// tiles' halos need only a strip of each neighbour).
@@ -79,7 +92,7 @@ pub fn material_window(
     inputs: Inputs<'_>,
     z: u8,
     w: Window,
-) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
+) -> Result<MaterialWindow, TileError> {
     // The three inputs side by side: a cold window's drainage chain routes its parent levels
     // while the window's own elevation tiles are amplified, and the vegetation waits only for
     // what it shares with them (the same tiles, computed once).
@@ -142,5 +155,9 @@ pub fn material_window(
     for m in &mut weights {
         mask_in_place(m, &coverage);
     }
-    Ok((weights, terrain.shade))
+    Ok(MaterialWindow {
+        weights,
+        shade: terrain.shade,
+        vegetation: veg,
+    })
 }

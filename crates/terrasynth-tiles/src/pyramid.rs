@@ -13,6 +13,7 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
+use moka::policy::EvictionPolicy;
 use moka::sync::Cache;
 use ndarray::{s, Array2};
 
@@ -32,6 +33,27 @@ pub type TileKey = (u8, i64, i64);
 
 /// Bytes of bookkeeping charged per cached plane on top of its values.
 const PLANE_OVERHEAD: u64 = 64;
+
+/// A cache of at most `capacity_bytes` bytes, each value weighed by `bytes`, that evicts the
+/// least recently used entries and admits every new one. Level tiles are read again right after
+/// they are computed (an instance tile's window reads the vegetation tiles its first step just
+/// computed; the vegetation reads the atoms the elevation tile kept), so a new entry must get
+/// in: moka's default admission (TinyLFU) turns a new entry away while the cache is full of
+/// entries read more often, and the next read computes it again.
+pub fn recent_cache<K, V>(
+    capacity_bytes: u64,
+    bytes: impl Fn(&V) -> u64 + Send + Sync + 'static,
+) -> Cache<K, V>
+where
+    K: std::hash::Hash + Eq + Send + Sync + 'static,
+    V: Clone + Send + Sync + 'static,
+{
+    Cache::builder()
+        .weigher(move |_, v: &V| u32::try_from(bytes(v)).unwrap_or(u32::MAX))
+        .max_capacity(capacity_bytes)
+        .eviction_policy(EvictionPolicy::lru())
+        .build()
+}
 
 /// The window of tile `(tx, ty)` on its zoom's plane.
 pub fn tile_window(tx: i64, ty: i64) -> Window {
@@ -112,10 +134,7 @@ impl<T: LevelTile> LevelCache<T> {
     /// A cache holding at most `capacity_bytes` bytes of tiles.
     pub fn new(capacity_bytes: u64) -> Self {
         LevelCache {
-            cache: Cache::builder()
-                .weigher(|_, v: &Arc<T>| u32::try_from(v.bytes()).unwrap_or(u32::MAX))
-                .max_capacity(capacity_bytes)
-                .build(),
+            cache: recent_cache(capacity_bytes, |v: &Arc<T>| v.bytes()),
             flights: Flights::new(),
             stats: CacheStats::default(),
         }
@@ -394,5 +413,44 @@ mod tests {
         assert_eq!(cache.weighted_size(), 2 * (256 * 256 * 4 + 64));
         let err = cache.get_or_compute((3, 0, 0), || Err(TileError::Encode("x".into())));
         assert!(err.is_err());
+    }
+
+    #[test]
+    fn a_full_cache_keeps_the_tile_it_just_computed() {
+        // Room for four 16²-tiles. Four tiles read often fill it; a new tile read right after it
+        // was computed must come from the cache (the least recently read tile goes instead), as an
+        // instance tile's materials read the vegetation tiles its species step just computed.
+        let tile_bytes = 16 * 16 * 4 + PLANE_OVERHEAD;
+        let cache: LevelCache<Array2<f32>> = LevelCache::new(4 * tile_bytes);
+        let tile = |v: f32| Ok(Array2::from_elem((16, 16), v));
+        for _ in 0..5 {
+            for k in 0..4 {
+                cache.get_or_compute((9, k, 0), || tile(k as f32)).unwrap();
+                cache.cache.run_pending_tasks();
+            }
+        }
+        assert_eq!(cache.stats().misses.load(Ordering::Relaxed), 4);
+        let mut calls = 0;
+        for _ in 0..2 {
+            let t = cache
+                .get_or_compute((9, 7, 7), || {
+                    calls += 1;
+                    tile(7.0)
+                })
+                .unwrap();
+            assert_eq!(t[[3, 3]], 7.0);
+            cache.cache.run_pending_tasks();
+        }
+        assert_eq!(calls, 1, "the new tile was turned away and computed again");
+        assert!(cache.weighted_size() <= 4 * tile_bytes);
+        // The least recently read of the four went.
+        let mut recomputed = 0;
+        cache
+            .get_or_compute((9, 0, 0), || {
+                recomputed += 1;
+                tile(0.0)
+            })
+            .unwrap();
+        assert_eq!(recomputed, 1);
     }
 }

@@ -773,6 +773,17 @@ impl World {
     /// Normalised material weights over window `w` of zoom `z` (no check that it meets the
     /// world), equal bit for bit to the same window of the tiles' weights.
     pub fn material_window(&self, z: u8, w: Window) -> Result<Vec<Array2<f32>>, TileError> {
+        self.materials_and_vegetation(z, w).map(|m| m.weights)
+    }
+
+    /// The material weights, hillshade and vegetation of window `w` of zoom `z` at once (no
+    /// check that it meets the world): [`World::material_window`] and
+    /// [`World::vegetation_window`] with the vegetation assembled once.
+    pub fn materials_and_vegetation(
+        &self,
+        z: u8,
+        w: Window,
+    ) -> Result<materials::MaterialWindow, TileError> {
         materials::material_window(
             &self.landscape,
             &self.vegetation,
@@ -781,7 +792,6 @@ impl World {
             z,
             w,
         )
-        .map(|(weights, _shade)| weights)
     }
 
     /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),
