@@ -295,8 +295,8 @@ fn bench_routing(c: &mut Criterion) {
 
 /// The default world's material weights (the splat, colour and instance tiles' per-pixel work)
 /// and every species' niche suitability (the vegetation tiles') over 512² of the real terrain,
-/// with the terrain's own slope, northness and curvature and uniform vegetation and wetness
-/// (pixels per second).
+/// with the terrain's own slope, northness and curvature and uniform vegetation and wetness,
+/// and the slope, northness and hillshade a landscape tile's terrain needs (pixels per second).
 fn bench_layers(c: &mut Criterion) {
     use terrasynth_core::analysis;
     use terrasynth_core::landscape::{material_weights, LandscapeConfig, LayerInputs};
@@ -336,6 +336,24 @@ fn bench_layers(c: &mut Criterion) {
                 })
                 .collect::<Vec<_>>()
         })
+    });
+    // A landscape tile's terrain (`terrain::Terrain::of`): slope, northness and hillshade one
+    // function at a time (three gradients), then from one gradient.
+    let light = (
+        analysis::DEFAULT_AZIMUTH_DEG,
+        analysis::DEFAULT_ALTITUDE_DEG,
+    );
+    g.bench_function("slope_northness_shade/separate", |b| {
+        b.iter(|| {
+            (
+                analysis::slope_degrees(&z, &cells),
+                analysis::northness(&z, &cells),
+                analysis::hillshade(&z, &cells, light.0, light.1),
+            )
+        })
+    });
+    g.bench_function("slope_northness_shade/fused", |b| {
+        b.iter(|| analysis::slope_northness_shade(&z, &cells, light.0, light.1))
     });
     g.finish();
 }

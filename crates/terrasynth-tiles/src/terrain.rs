@@ -32,16 +32,17 @@ impl Terrain {
         let e = elevation.window(z, b)?;
         let cells = elevation.extent().cell_sizes(z, b.row0, b.rows);
         let inner = |a: Array2<f32>| a.slice(s![1..=w.rows, 1..=w.cols]).to_owned();
+        let [slope, northness, shade] = analysis::slope_northness_shade(
+            &e,
+            &cells,
+            analysis::DEFAULT_AZIMUTH_DEG,
+            analysis::DEFAULT_ALTITUDE_DEG,
+        );
         Ok(Terrain {
-            slope: inner(analysis::slope_degrees(&e, &cells)),
-            northness: inner(analysis::northness(&e, &cells)),
+            slope: inner(slope),
+            northness: inner(northness),
             curvature: inner(analysis::curvature(&e, &cells)),
-            shade: inner(analysis::hillshade(
-                &e,
-                &cells,
-                analysis::DEFAULT_AZIMUTH_DEG,
-                analysis::DEFAULT_ALTITUDE_DEG,
-            )),
+            shade: inner(shade),
             elevation: inner(e),
         })
     }

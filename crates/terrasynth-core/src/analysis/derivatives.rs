@@ -7,6 +7,7 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use super::common::{row_sizes, values};
+use super::hillshade::Light;
 use crate::raster::CellSizes;
 
 /// Horn (1981) gradient `(dz/dx eastwards, dz/dy northwards)` in m/m.
@@ -59,19 +60,71 @@ pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
     (gx, gy)
 }
 
+/// The steepness `√(gx² + gy²)` of a cell of gradient `(x, y)`, in f64.
+#[inline]
+fn steepness(x: f32, y: f32) -> f64 {
+    (x as f64).hypot(y as f64)
+}
+
+/// Degrees of a slope whose tangent, rounded to `f32` as [`slope`] stores it, is `tangent`.
+#[inline]
+fn degrees_of_tangent(tangent: f32) -> f32 {
+    (tangent as f64).atan().to_degrees() as f32
+}
+
+/// Northness of a cell of north gradient `y` and steepness `s` ([`steepness`]).
+#[inline]
+fn northness_of(y: f32, s: f64) -> f32 {
+    if s == 0.0 {
+        0.0
+    } else {
+        (-(y as f64) / s).clamp(-1.0, 1.0) as f32
+    }
+}
+
 /// Slope as the tangent of the steepest angle (m/m): `sqrt(gx² + gy²)` of [`gradient`].
 pub fn slope(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
     let (gx, gy) = gradient(z, cs);
     ndarray::Zip::from(&gx)
         .and(&gy)
-        .par_map_collect(|&x, &y| ((x as f64).hypot(y as f64)) as f32)
+        .par_map_collect(|&x, &y| steepness(x, y) as f32)
 }
 
 /// Slope in degrees, `atan(`[`slope`]`)`, in [0, 90).
 pub fn slope_degrees(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
     let mut s = slope(z, cs);
-    s.par_mapv_inplace(|s| (s as f64).atan().to_degrees() as f32);
+    s.par_mapv_inplace(degrees_of_tangent);
     s
+}
+
+/// Slope in degrees, northness and hillshade (for a light at `azimuth_deg`, `altitude_deg`) from
+/// one [`gradient`], each bit for bit what [`slope_degrees`], [`northness`] and
+/// [`hillshade`](super::hillshade::hillshade) give: the terrain of a landscape tile needs all
+/// three, and this computes the gradient and each cell's steepness once instead of three and
+/// two times.
+pub fn slope_northness_shade(
+    z: &Array2<f32>,
+    cs: &CellSizes,
+    azimuth_deg: f32,
+    altitude_deg: f32,
+) -> [Array2<f32>; 3] {
+    let (gx, gy) = gradient(z, cs);
+    let light = Light::new(azimuth_deg, altitude_deg);
+    let mut slope = Array2::<f32>::zeros(z.dim());
+    let mut north = Array2::<f32>::zeros(z.dim());
+    let mut shade = Array2::<f32>::zeros(z.dim());
+    ndarray::Zip::from(&mut slope)
+        .and(&mut north)
+        .and(&mut shade)
+        .and(&gx)
+        .and(&gy)
+        .par_for_each(|sl, no, sh, &x, &y| {
+            let s = steepness(x, y);
+            *sl = degrees_of_tangent(s as f32);
+            *no = northness_of(y, s);
+            *sh = light.shade(x, y);
+        });
+    [slope, north, shade]
 }
 
 /// Aspect: the compass direction (degrees clockwise from north) of the downslope direction the
@@ -100,14 +153,9 @@ pub fn aspect(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
 /// south, 0 on flat cells.
 pub fn northness(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
     let (gx, gy) = gradient(z, cs);
-    ndarray::Zip::from(&gx).and(&gy).par_map_collect(|&x, &y| {
-        let s = (x as f64).hypot(y as f64);
-        if s == 0.0 {
-            0.0
-        } else {
-            (-(y as f64) / s).clamp(-1.0, 1.0) as f32
-        }
-    })
+    ndarray::Zip::from(&gx)
+        .and(&gy)
+        .par_map_collect(|&x, &y| northness_of(y, steepness(x, y)))
 }
 
 /// Curvature as the negative Laplacian in 1/m: positive on convex ridges and peaks, negative in

@@ -24,19 +24,44 @@ pub fn hillshade(
     altitude_deg: f32,
 ) -> Array2<f32> {
     let (gx, gy) = gradient(z, cs);
-    let az = (azimuth_deg as f64).to_radians();
-    let alt = (altitude_deg as f64).to_radians();
-    let (le, ln, lu) = (az.sin() * alt.cos(), az.cos() * alt.cos(), alt.sin());
-    ndarray::Zip::from(&gx).and(&gy).map_collect(|&x, &y| {
+    let light = Light::new(azimuth_deg, altitude_deg);
+    ndarray::Zip::from(&gx)
+        .and(&gy)
+        .map_collect(|&x, &y| light.shade(x, y))
+}
+
+/// A distant light: the unit vector towards it in (east, north, up).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Light {
+    east: f64,
+    north: f64,
+    up: f64,
+}
+
+impl Light {
+    /// The light at `azimuth_deg` (clockwise from north) and `altitude_deg` above the horizon.
+    pub(crate) fn new(azimuth_deg: f32, altitude_deg: f32) -> Light {
+        let az = (azimuth_deg as f64).to_radians();
+        let alt = (altitude_deg as f64).to_radians();
+        Light {
+            east: az.sin() * alt.cos(),
+            north: az.cos() * alt.cos(),
+            up: alt.sin(),
+        }
+    }
+
+    /// The shade (0–1, NaN propagates) of a cell of gradient `(x, y)`.
+    #[inline]
+    pub(crate) fn shade(&self, x: f32, y: f32) -> f32 {
         let (x, y) = (x as f64, y as f64);
         let norm = (1.0 + x * x + y * y).sqrt();
-        let s = (-x * le - y * ln + lu) / norm;
+        let s = (-x * self.east - y * self.north + self.up) / norm;
         if s.is_nan() {
             f32::NAN
         } else {
             s.clamp(0.0, 1.0) as f32
         }
-    })
+    }
 }
 
 /// [`hillshade`] scaled to 0..=255 and rounded; NaN cells give 0.

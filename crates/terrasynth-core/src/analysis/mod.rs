@@ -46,7 +46,9 @@ use thiserror::Error;
 pub use breach::breach_pits;
 pub use common::{next_down, next_up};
 pub use contour::{contour_lines, contour_segments, join_segments, ContourLine};
-pub use derivatives::{aspect, curvature, gradient, northness, slope, slope_degrees};
+pub use derivatives::{
+    aspect, curvature, gradient, northness, slope, slope_degrees, slope_northness_shade,
+};
 pub use fft::{dft_naive, fft, fft2, Complex, Radix2};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
 pub use flow::{

@@ -408,6 +408,28 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// The fused slope, northness and hillshade are the separate functions' bits, on grids with
+    /// flats (zero gradient) and on grids with NaN cells, for any light.
+    #[test]
+    fn fused_surface_derivatives_equal_the_separate_ones(
+        (flat, flat_cs) in grid_strategy(),
+        (real, real_cs) in real_grid_strategy(),
+        azimuth in 0.0f32..360.0,
+        altitude in 1.0f32..89.0,
+    ) {
+        let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for (z, cs) in [(&flat, &flat_cs), (&real, &real_cs)] {
+            let [slope, north, shade] = analysis::slope_northness_shade(z, cs, azimuth, altitude);
+            prop_assert_eq!(bits(&slope), bits(&analysis::slope_degrees(z, cs)));
+            prop_assert_eq!(bits(&north), bits(&analysis::northness(z, cs)));
+            prop_assert_eq!(bits(&shade), bits(&analysis::hillshade(z, cs, azimuth, altitude)));
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Hand-computed derivatives and hillshade
 // ---------------------------------------------------------------------------------------------
@@ -713,6 +735,8 @@ fn tiny_and_empty_grids() {
             let _ = analysis::northness(&z, cs);
             let _ = analysis::curvature(&z, cs);
             let _ = analysis::hillshade_u8(&z, cs, 315.0, 45.0);
+            let fused = analysis::slope_northness_shade(&z, cs, 315.0, 45.0);
+            assert!(fused.iter().all(|a| a.dim() == (rows, cols)));
             let _ = analysis::flow_accumulation_mfd(&z, cs, MFD_EXPONENT);
             let acc = analysis::flow_accumulation_d8(&z, cs);
             assert_eq!(acc.dim(), (rows, cols));
