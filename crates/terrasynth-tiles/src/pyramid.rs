@@ -36,11 +36,12 @@ const PLANE_OVERHEAD: u64 = 64;
 
 /// A cache of at most `capacity_bytes` bytes, each value weighed by `bytes`, that evicts the
 /// least recently used entries and admits every new one. Level tiles are read again right after
-/// they are computed (an instance tile's window reads the vegetation tiles its first step just
-/// computed; the vegetation reads the atoms the elevation tile kept), so a new entry must get
-/// in: moka's default admission (TinyLFU) turns a new entry away while the cache is full of
-/// entries read more often, and the next read computes it again.
-pub fn recent_cache<K, V>(
+/// they are computed, by the next step of the same request (a vegetation tile reads the drainage
+/// tile and the elevation tile's atoms that were just computed; the neighbouring tiles of a
+/// window are read again by the next window over them), so a new entry must get in: moka's
+/// default admission (TinyLFU) turns a new entry away while the cache is full of entries read
+/// more often, and the next read computes it again.
+pub(crate) fn recent_cache<K, V>(
     capacity_bytes: u64,
     bytes: impl Fn(&V) -> u64 + Send + Sync + 'static,
 ) -> Cache<K, V>
@@ -418,8 +419,8 @@ mod tests {
     #[test]
     fn a_full_cache_keeps_the_tile_it_just_computed() {
         // Room for four 16²-tiles. Four tiles read often fill it; a new tile read right after it
-        // was computed must come from the cache (the least recently read tile goes instead), as an
-        // instance tile's materials read the vegetation tiles its species step just computed.
+        // was computed must come from the cache (the least recently read tile goes instead), as a
+        // request's next step reads the level tiles its previous step just computed.
         let tile_bytes = 16 * 16 * 4 + PLANE_OVERHEAD;
         let cache: LevelCache<Array2<f32>> = LevelCache::new(4 * tile_bytes);
         let tile = |v: f32| Ok(Array2::from_elem((16, 16), v));
