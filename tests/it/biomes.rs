@@ -140,12 +140,14 @@ fn a_biome_painted_everywhere_serves_the_tiles_of_its_world_alone() {
             ),
             "drainage {what}"
         );
-        let ((ma, ha), (mp, hp)) = (
+        let (alone_materials, painted_materials) = (
             alone.material_tile(z, x, y).unwrap(),
             painted.material_tile(z, x, y).unwrap(),
         );
-        assert!(same_bits(&ha, &hp), "hillshade {what}");
-        for (a, p) in ma.iter().zip(&mp) {
+        let (ma, ha) = (&alone_materials.weights, &alone_materials.shade);
+        let (mp, hp) = (&painted_materials.weights, &painted_materials.shade);
+        assert!(same_bits(ha, hp), "hillshade {what}");
+        for (a, p) in ma.iter().zip(mp) {
             assert!(same_bits(a, p), "materials {what}");
         }
         let ((da, la), (dp, lp)) = (
@@ -439,7 +441,7 @@ fn materials_and_species_follow_biome_terms() {
         // Beyond 8 pixels from the boundary (the bilinear ramp is one base cell wide, at most
         // 3 pixels at zoom 10), one biome alone is painted.
         let (west, east) = (..b.saturating_sub(8), b + 8..);
-        let (m, _) = world.material_tile(z, x, y).unwrap();
+        let m = &world.material_tile(z, x, y).unwrap().weights;
         let (ridges, steppe) = (&m[0], &m[1]);
         let coverage = world.coverage_tile(z, x, y).unwrap();
         let mut checked = [0, 0];

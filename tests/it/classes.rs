@@ -114,7 +114,7 @@ fn class_world_with(
 fn splat_weights_follow_the_class_raster_pixel_by_pixel() {
     // Sharp classes: meadow 1 west of column 128, scree 1 from it on, `water` 0.
     let world = class_world(0.0).unwrap();
-    let (w, _) = world.material_tile(Z, TX, TY).unwrap();
+    let w = &world.material_tile(Z, TX, TY).unwrap().weights;
     assert_eq!(w.len(), 3, "meadow, scree, water");
     for ((r, c), &v) in w[0].indexed_iter() {
         let want = if c < 128 { 1.0 } else { 0.0 };
@@ -131,7 +131,7 @@ fn splat_weights_follow_the_class_raster_pixel_by_pixel() {
     // columns 125–130. Meadow = s(g) with s(t) = t²(3 − 2t), scree = s(1 − g) = 1 − s(g), so
     // the normalised weights are s(g): 1, 0.896, 0.648, 0.352, 0.104, 0.
     let world = class_world(2000.0).unwrap();
-    let (w, _) = world.material_tile(Z, TX, TY).unwrap();
+    let w = &world.material_tile(Z, TX, TY).unwrap().weights;
     let want = [
         (120, 1.0f32),
         (125, 1.0),

@@ -101,6 +101,24 @@ fn an_instance_tile_alone_is_the_window_of_a_block_and_distances_hold_across_bor
     );
 }
 
+/// A tile's splat sets and colour map read one material computation from the world's cache.
+#[test]
+fn a_tiles_splat_sets_and_colour_map_share_one_material_computation() {
+    let (x, y) = Z15;
+    let w = world();
+    let first = w.material_tile(15, x, y).unwrap();
+    // The second splat set (or the colour map) of the same tile reads the cached tile: the same
+    // allocation, not a second computation.
+    let again = w.material_tile(15, x, y).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&first, &again));
+    // What is cached is what the uncached path computes, bit for bit, on a world of its own.
+    let fresh = world()
+        .material_weights_at(15, i64::from(x), i64::from(y))
+        .unwrap();
+    assert_eq!(*first, fresh);
+    assert!(first.weights.iter().any(|m| m.iter().any(|&v| v > 0.0)));
+}
+
 /// The instance halos read material weights over windows that cut tiles: a window computed
 /// directly equals the same pixels of the tiles' own weights, bit for bit, on a window straddling
 /// four zoom-15 tiles (the world that computes the window has computed no tile's weights).
@@ -114,7 +132,7 @@ fn material_weights_of_a_window_are_the_tiles_weights_bit_for_bit() {
     let mut compared = 0usize;
     for (dx, dy) in [(0i64, 0i64), (1, 0), (0, 1), (1, 1)] {
         let (tx, ty) = (i64::from(x) + dx, i64::from(y) + dy);
-        let (weights, _) = tiles_world.material_weights_at(15, tx, ty).unwrap();
+        let weights = tiles_world.material_weights_at(15, tx, ty).unwrap().weights;
         assert_eq!(weights.len(), direct.len());
         for r in 0..w.rows {
             for c in 0..w.cols {
@@ -145,7 +163,7 @@ fn instances_stand_on_their_layers_and_on_the_elevation_tiles_ground() {
     let (x, y) = Z15;
     let placed = instances_tile(&w, 15, x, y).unwrap();
     let veg = w.vegetation_tile(15, x, y).unwrap();
-    let (mats, _) = w.material_tile(15, x, y).unwrap();
+    let mats = &w.material_tile(15, x, y).unwrap().weights;
     let elev = w.elevation_tile(15, x, y).unwrap();
     let l = w.landscape();
     let mut kinds = std::collections::BTreeSet::new();

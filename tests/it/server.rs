@@ -598,7 +598,7 @@ async fn landscape_layers_over_http() {
 fn landscape_channels(world: &World, z: u8, x: u32, y: u32) -> Vec<Array2<f32>> {
     let mut out: Vec<Array2<f32>> = world.vegetation_tile(z, x, y).unwrap().to_vec();
     out.push(world.drainage_tile(z, x, y).unwrap().mapv(f32::log10));
-    out.extend(world.material_tile(z, x, y).unwrap().0);
+    out.extend(world.material_tile(z, x, y).unwrap().weights.clone());
     out
 }
 
@@ -679,8 +679,8 @@ fn landscape_layers_are_deterministic_and_seamless() {
         let d = world.drainage_tile(z, x, y).unwrap();
         assert_eq!(*d, drain.slice(s![256..512, 256..512]).to_owned());
         assert_eq!(
-            third.material_tile(z, x, y).unwrap().0,
-            world.material_tile(z, x, y).unwrap().0
+            third.material_tile(z, x, y).unwrap().weights,
+            world.material_tile(z, x, y).unwrap().weights
         );
     }
 }

@@ -13,7 +13,7 @@ use crate::classes::ClassWeights;
 use crate::coverage::mask_in_place;
 use crate::error::TileError;
 use crate::mercator::pixel_size_m;
-use crate::pyramid::tile_window;
+use crate::pyramid::{tile_window, LevelTile};
 use crate::terrain::Terrain;
 use crate::vegetation::{wetness, Inputs, VegetationLevels};
 use crate::water::zero_under_water;
@@ -57,7 +57,7 @@ pub fn material_tile(
     z: u8,
     tx: i64,
     ty: i64,
-) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
+) -> Result<MaterialTile, TileError> {
     material_window(
         landscape,
         vegetation,
@@ -66,7 +66,37 @@ pub fn material_tile(
         z,
         tile_window(tx, ty),
     )
-    .map(|m| (m.weights, m.shade))
+    .map(|m| MaterialTile {
+        weights: m.weights,
+        shade: m.shade,
+    })
+}
+
+/// A tile's material weights and hillshade: what its splat sets and its colour map read, kept
+/// in a level cache as one tile (the weights' planes, then the shade) so that they share one
+/// computation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialTile {
+    /// Normalised weights, one grid per name of [`splat_names`].
+    pub weights: Vec<Array2<f32>>,
+    /// Hillshade, 0–1.
+    pub shade: Array2<f32>,
+}
+
+impl LevelTile for MaterialTile {
+    fn planes(&self) -> usize {
+        self.weights.len() + 1
+    }
+    fn plane(&self, k: usize) -> &Array2<f32> {
+        self.weights.get(k).unwrap_or(&self.shade)
+    }
+    fn from_planes(mut planes: Vec<Array2<f32>>) -> Self {
+        let shade = planes.pop().unwrap_or_else(|| Array2::zeros((0, 0)));
+        MaterialTile {
+            weights: planes,
+            shade,
+        }
+    }
 }
 
 /// A window's material weights, its hillshade and the species densities the weights read.

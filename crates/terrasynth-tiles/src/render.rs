@@ -139,7 +139,7 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
             encode_rgba_png(&rgba)?
         }
         TileKind::Splat { set } => {
-            let (weights, _) = world.material_tile(z, x, y)?;
+            let weights = &world.material_tile(z, x, y)?.weights;
             let n = weights.len();
             let mut w = vec![0.0f32; n];
             let mut q = vec![0u8; n];
@@ -192,7 +192,8 @@ fn elevation_heights(
 
 /// The colour map's pixels: the baked material colour shaded by the hillshade.
 fn colour_map(world: &World, z: u8, x: u32, y: u32) -> Result<Array2<[u8; 4]>, TileError> {
-    let (weights, shade) = world.material_tile(z, x, y)?;
+    let material = world.material_tile(z, x, y)?;
+    let (weights, shade) = (&material.weights, &material.shade);
     let coverage = world.coverage_tile(z, x, y)?;
     let (depth, _) = world.water_tile(z, x, y)?;
     let water = world.water_config();

@@ -33,7 +33,8 @@ use crate::drainage::DrainageLevels;
 use crate::elevation::ElevationLevels;
 use crate::error::TileError;
 use crate::extent::{relief_center, Extent};
-use crate::materials;
+use crate::materials::{self, MaterialTile};
+use crate::pyramid::LevelCache;
 use crate::vegetation::{Inputs, VegetationLevels};
 use crate::water::{WaterLevels, DEPTH, LEVEL};
 
@@ -84,6 +85,12 @@ pub struct WorldParts {
     /// none.
     pub controls: Vec<SpeciesControl>,
 }
+
+/// The material tiles' part of the level caches' budget (1/32, out of the elevation tiles'
+/// half): a tile's splat sets and colour map are asked for one after the other, so a few tiles
+/// (2–3 MB each) suffice. Taken out of the vegetation tiles' quarter instead, it slowed the
+/// instance tiles, which read the vegetation of nine tiles around theirs.
+const MATERIALS_SHARE: u64 = 32;
 
 /// A snapshot of a world's counters, for `/metrics`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -145,6 +152,8 @@ pub struct World {
     whole: WholeWorld,
     drainage: DrainageLevels,
     vegetation: VegetationLevels,
+    /// Material tiles (weights and hillshade), read by a tile's splat sets and colour map.
+    materials: LevelCache<MaterialTile>,
     water: WaterLevels,
     water_config: WaterConfig,
     /// Land-cover class weights on the base's grid (empty without classes).
@@ -438,7 +447,7 @@ impl World {
                 extent,
                 amplifiers,
                 elevation_biomes,
-                budget / 2,
+                budget / 2 - budget / MATERIALS_SHARE,
                 budget / 64,
                 parts.water.clone(),
                 classes.clone(),
@@ -453,6 +462,7 @@ impl World {
                 budget / 4 - water_bytes / 2,
                 &matched_layers,
             ),
+            materials: LevelCache::new(budget / MATERIALS_SHARE),
             water: WaterLevels::new(water_bytes),
             water_config: parts.water,
             classes,
@@ -607,6 +617,7 @@ impl World {
                 &self.drainage.cache().stats().cancelled,
                 &self.vegetation.cache().stats().cancelled,
                 &self.water.cache().stats().cancelled,
+                &self.materials.stats().cancelled,
             ]
             .iter()
             .map(|c| c.load(Ordering::Relaxed))
@@ -619,13 +630,15 @@ impl World {
         self.memory
     }
 
-    /// Bytes currently held by the level-tile caches (elevation, vegetation, drainage).
+    /// Bytes currently held by the level-tile caches (elevation, coverage, vegetation, drainage, water,
+    /// materials).
     pub fn cache_bytes(&self) -> u64 {
         self.elevation.cache().weighted_size()
             + self.elevation.coverage_cache().weighted_size()
             + self.vegetation.cache().weighted_size()
             + self.drainage.cache().weighted_size()
             + self.water.cache().weighted_size()
+            + self.materials.weighted_size()
     }
 
     /// Checks that tile `(z, x, y)` exists and intersects the world: `OutOfRange`, `ZoomTooDeep`
@@ -752,13 +765,8 @@ impl World {
     }
 
     /// Material weights of tile `(z, tx, ty)` of the plane (no check that it meets the world:
-    /// the instance tiles read them around a tile), and its hillshade.
-    pub fn material_weights_at(
-        &self,
-        z: u8,
-        tx: i64,
-        ty: i64,
-    ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
+    /// the instance tiles read them around a tile), and its hillshade; computed, not cached.
+    pub fn material_weights_at(&self, z: u8, tx: i64, ty: i64) -> Result<MaterialTile, TileError> {
         materials::material_tile(
             &self.landscape,
             &self.vegetation,
@@ -795,22 +803,12 @@ impl World {
     }
 
     /// Normalised material weights of tile `(z, x, y)` (one grid per material, summing to 1),
-    /// and the tile's hillshade (0–1).
-    pub fn material_tile(
-        &self,
-        z: u8,
-        x: u32,
-        y: u32,
-    ) -> Result<(Vec<Array2<f32>>, Array2<f32>), TileError> {
+    /// and the tile's hillshade (0–1), from the material cache: a tile's two splat sets and its
+    /// colour map compute them once.
+    pub fn material_tile(&self, z: u8, x: u32, y: u32) -> Result<Arc<MaterialTile>, TileError> {
         self.check_tile(z, x, y)?;
-        materials::material_tile(
-            &self.landscape,
-            &self.vegetation,
-            &self.classes,
-            self.inputs(),
-            z,
-            i64::from(x),
-            i64::from(y),
-        )
+        let (tx, ty) = (i64::from(x), i64::from(y));
+        self.materials
+            .get_or_compute((z, tx, ty), || self.material_weights_at(z, tx, ty))
     }
 }
