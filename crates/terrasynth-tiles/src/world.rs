@@ -764,8 +764,8 @@ impl World {
         self.vegetation.window(self.inputs(), z, w)
     }
 
-    /// Material weights of tile `(z, tx, ty)` of the plane (no check that it meets the world:
-    /// the instance tiles read them around a tile), and its hillshade; computed, not cached.
+    /// Material weights of tile `(z, tx, ty)` of the plane (no check that it meets the world)
+    /// and its hillshade, computed: [`World::material_tile`] without the check and the cache.
     pub fn material_weights_at(&self, z: u8, tx: i64, ty: i64) -> Result<MaterialTile, TileError> {
         materials::material_tile(
             &self.landscape,
