@@ -9,7 +9,7 @@ use ndarray::Array2;
 use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_tiles::{decode_float_exr, decode_terrarium_png};
 
-use crate::support::{proc, start as start_server, Server};
+use crate::support::{proc, start as start_server, start_logging, Server};
 use terrasynth_test_support::coherence;
 
 /// `terrasynth serve` on the default world with its store in `store`.
@@ -68,12 +68,44 @@ fn default_world_is_plausible_and_deterministic_across_processes() {
         lo > 500.0 && hi < 5500.0 && hi - lo > 300.0,
         "heights {lo}..{hi}"
     );
-    // A second process (reusing the store the first filled) returns the same bytes.
-    let b = start(store.path());
+    // A second process (reusing the store the first filled) returns the same bytes. It logs
+    // every level tile it computes (`RUST_LOG=…,terrasynth_tiles::levels=debug`, README "Cold
+    // tiles").
+    let log = store.path().join("server-b.log");
+    let b = start_logging(
+        &[],
+        &[
+            ("TERRASYNTH_CACHE_MB", "256"),
+            ("RUST_LOG", "info,terrasynth_tiles::levels=debug"),
+        ],
+        store.path(),
+        &log,
+    );
     for (p, want) in paths.iter().zip(&first) {
         let (status, body) = fetch(&b, p);
         assert_eq!(status, 200, "{p}");
         assert!(body == *want, "{p} differs between processes");
+    }
+    // Every level tile behind those requests was computed once, however many requests read it:
+    // the zoom-10 elevation tile 724/378 serves the elevation, hillshade, drainage, vegetation,
+    // splat and colour tiles there (and their neighbours' routing regions).
+    let text = std::fs::read_to_string(&log).unwrap();
+    let computed = |layer: &str, z: u8, x: u32, y: u32| {
+        let key = format!("level tile computed layer=\"{layer}\" z={z} x={x} y={y} ms=");
+        text.lines().filter(|l| l.contains(&key)).count()
+    };
+    for (layer, z, x, y) in [
+        ("elevation", 12, 2896, 1512),
+        ("elevation", 10, 724, 378),
+        ("drainage", 10, 724, 378),
+        ("vegetation", 10, 724, 378),
+        ("materials", 10, 724, 378),
+    ] {
+        assert_eq!(
+            computed(layer, z, x, y),
+            1,
+            "{layer} {z}/{x}/{y} in the level log:\n{text}"
+        );
     }
     // And the same bytes as the committed list recorded before the workspace move.
     crate::tile_hashes::assert_default_world_tiles(&b);

@@ -64,6 +64,18 @@ pub fn start(args: &[&str], env: &[(&str, &str)], store: &Path) -> Server {
     )
 }
 
+/// [`start`] with the server's log (its standard output) written to the file `log`.
+pub fn start_logging(args: &[&str], env: &[(&str, &str)], store: &Path, log: &Path) -> Server {
+    proc::start_binary_logging(
+        Path::new(env!("CARGO_BIN_EXE_terrasynth")),
+        Path::new(env!("CARGO_MANIFEST_DIR")),
+        args,
+        env,
+        store,
+        log,
+    )
+}
+
 /// Reads an RGBA PNG into rows × cols × 4 bytes.
 pub fn decode_rgba(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
     let mut dec = png::Decoder::new(std::io::Cursor::new(bytes));

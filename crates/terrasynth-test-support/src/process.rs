@@ -49,6 +49,30 @@ pub fn start_binary(
     env: &[(&str, &str)],
     store: &Path,
 ) -> Server {
+    start_binary_with_output(bin, cwd, args, env, store, Stdio::null())
+}
+
+/// [`start_binary`] with the server's log (its standard output) written to the file `log`.
+pub fn start_binary_logging(
+    bin: &Path,
+    cwd: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+    store: &Path,
+    log: &Path,
+) -> Server {
+    let file = std::fs::File::create(log).expect("create the server's log file");
+    start_binary_with_output(bin, cwd, args, env, store, Stdio::from(file))
+}
+
+fn start_binary_with_output(
+    bin: &Path,
+    cwd: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+    store: &Path,
+    stdout: Stdio,
+) -> Server {
     let port = free_port();
     let addr = format!("127.0.0.1:{port}");
     let mut cmd = Command::new(bin);
@@ -58,7 +82,7 @@ pub fn start_binary(
         .env("TERRASYNTH_STORE_DIR", store)
         .env("TERRASYNTH_CACHE_MB", "64")
         .current_dir(cwd)
-        .stdout(Stdio::null())
+        .stdout(stdout)
         .stderr(Stdio::null());
     for (k, v) in env {
         cmd.env(k, v);

@@ -38,7 +38,7 @@ impl CoverageLevels {
     /// Coverage levels of `base`, the overview tiles cached in at most `cache_bytes` bytes.
     pub fn new(base: &Grid, cache_bytes: u64) -> Self {
         CoverageLevels {
-            cache: LevelCache::new(cache_bytes),
+            cache: LevelCache::new("coverage", cache_bytes),
             valid: source_validity(base),
         }
     }

@@ -65,7 +65,7 @@ impl DrainageLevels {
     /// Drainage levels cached in at most `cache_bytes` bytes.
     pub fn new(cache_bytes: u64) -> Self {
         DrainageLevels {
-            cache: LevelCache::new(cache_bytes),
+            cache: LevelCache::new("drainage", cache_bytes),
         }
     }
 

@@ -179,7 +179,7 @@ impl ElevationLevels {
             classes,
             base_water: OnceLock::new(),
             coverage,
-            cache: LevelCache::new(cache_bytes - cache_bytes / LAYER_ATOMS_SHARE),
+            cache: LevelCache::new("elevation", cache_bytes - cache_bytes / LAYER_ATOMS_SHARE),
             layer_atoms: recent_cache(cache_bytes / LAYER_ATOMS_SHARE, |a: &Arc<LayerAtoms>| {
                 a.bytes()
             }),

@@ -12,6 +12,7 @@
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Instant;
 
 use moka::policy::EvictionPolicy;
 use moka::sync::Cache;
@@ -116,8 +117,16 @@ pub struct CacheStats {
     pub cancelled: AtomicU64,
 }
 
+/// The `tracing` target of the level tiles' debug events: with
+/// `RUST_LOG=terrasynth_tiles::levels=debug` the server logs every level tile it computes, with
+/// its layer, key and wall time (including the level tiles it waited for), so that a slow
+/// request can be traced to the chain it computed.
+pub const LEVELS_LOG_TARGET: &str = "terrasynth_tiles::levels";
+
 /// The level tiles of one layer of one world, weighed in bytes.
 pub struct LevelCache<T: LevelTile> {
+    /// The layer's name in the debug events ([`LEVELS_LOG_TARGET`]).
+    layer: &'static str,
     cache: Cache<TileKey, Arc<T>>,
     flights: Flights<TileKey, Arc<T>>,
     stats: CacheStats,
@@ -126,15 +135,17 @@ pub struct LevelCache<T: LevelTile> {
 impl<T: LevelTile> std::fmt::Debug for LevelCache<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("LevelCache")
+            .field("layer", &self.layer)
             .field("entries", &self.cache.entry_count())
             .finish_non_exhaustive()
     }
 }
 
 impl<T: LevelTile> LevelCache<T> {
-    /// A cache holding at most `capacity_bytes` bytes of tiles.
-    pub fn new(capacity_bytes: u64) -> Self {
+    /// A cache of `layer`'s tiles holding at most `capacity_bytes` bytes of them.
+    pub fn new(layer: &'static str, capacity_bytes: u64) -> Self {
         LevelCache {
+            layer,
             cache: recent_cache(capacity_bytes, |v: &Arc<T>| v.bytes()),
             flights: Flights::new(),
             stats: CacheStats::default(),
@@ -163,7 +174,10 @@ impl<T: LevelTile> LevelCache<T> {
                     return Ok(t);
                 }
                 self.stats.misses.fetch_add(1, Ordering::Relaxed);
-                compute().map(Arc::new)
+                let started = Instant::now();
+                let r = compute().map(Arc::new);
+                log_computed(self.layer, key, started, &r);
+                r
             },
             |t| self.cache.insert(key, t.clone()),
         );
@@ -286,6 +300,29 @@ pub fn assemble_concurrently<T: LevelTile>(
     })
 }
 
+/// The debug event of one level tile's computation (`RUST_LOG=terrasynth_tiles::levels=debug`):
+/// the layer, the key, the wall time in milliseconds from its start (the level tiles it waited
+/// for included) and how it ended.
+fn log_computed<T>(
+    layer: &'static str,
+    (z, x, y): TileKey,
+    started: Instant,
+    r: &Result<T, TileError>,
+) {
+    let ms = (started.elapsed().as_secs_f64() * 1e5).round() / 100.0;
+    match r {
+        Ok(_) => {
+            tracing::debug!(target: LEVELS_LOG_TARGET, layer, z, x, y, ms, "level tile computed")
+        }
+        Err(TileError::Cancelled) => {
+            tracing::debug!(target: LEVELS_LOG_TARGET, layer, z, x, y, ms, "level tile cancelled")
+        }
+        Err(e) => {
+            tracing::debug!(target: LEVELS_LOG_TARGET, layer, z, x, y, ms, error = %e, "level tile failed")
+        }
+    }
+}
+
 /// An overview tile: each of its `planes` planes is made of its four children's 2×2 blocks
 /// reduced by `reduce` (the box average for quantities that average, the maximum for drainage).
 /// `child(cx, cy)` returns `None` for a child outside the world, whose quarter keeps `fill`.
@@ -398,7 +435,7 @@ mod tests {
 
     #[test]
     fn the_cache_computes_once_and_weighs_bytes() {
-        let cache: LevelCache<Vec<Array2<f32>>> = LevelCache::new(1 << 30);
+        let cache: LevelCache<Vec<Array2<f32>>> = LevelCache::new("test", 1 << 30);
         let mut calls = 0;
         for _ in 0..3 {
             let t = cache
@@ -422,7 +459,7 @@ mod tests {
         // was computed must come from the cache (the least recently read tile goes instead), as a
         // request's next step reads the level tiles its previous step just computed.
         let tile_bytes = 16 * 16 * 4 + PLANE_OVERHEAD;
-        let cache: LevelCache<Array2<f32>> = LevelCache::new(4 * tile_bytes);
+        let cache: LevelCache<Array2<f32>> = LevelCache::new("test", 4 * tile_bytes);
         let tile = |v: f32| Ok(Array2::from_elem((16, 16), v));
         for _ in 0..5 {
             for k in 0..4 {

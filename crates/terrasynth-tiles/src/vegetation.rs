@@ -92,7 +92,7 @@ impl VegetationLevels {
             amplifiers,
             biomes,
             elevation_atoms,
-            cache: LevelCache::new(cache_bytes),
+            cache: LevelCache::new("vegetation", cache_bytes),
         }
     }
 

@@ -61,7 +61,7 @@ impl WaterLevels {
     /// Water levels cached in at most `cache_bytes` bytes.
     pub fn new(cache_bytes: u64) -> Self {
         WaterLevels {
-            cache: LevelCache::new(cache_bytes),
+            cache: LevelCache::new("water", cache_bytes),
             dry: Arc::new(dry(tile_window(0, 0))),
         }
     }

@@ -462,7 +462,7 @@ impl World {
                 budget / 4 - water_bytes / 2,
                 &matched_layers,
             ),
-            materials: LevelCache::new(budget / MATERIALS_SHARE),
+            materials: LevelCache::new("materials", budget / MATERIALS_SHARE),
             water: WaterLevels::new(water_bytes),
             water_config: parts.water,
             classes,
