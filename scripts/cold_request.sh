@@ -12,7 +12,8 @@
 #   - the level tiles it computed, from the server's log: per layer and zoom, how many and when
 #     the first started and the last ended, then every one in the order it finished with its
 #     wall time (the level tiles it waited for included), start and end (milliseconds from the
-#     moment the request was sent).
+#     moment the script launched curl for the request: curl's own start-up, a few milliseconds,
+#     comes first, so a tile may end a little after the request's wall time).
 # --repeat K starts K fresh servers and reports the request's times for each (the level tiles of
 # the last): run it on two builds, alternating, to compare them on one request.
 #
@@ -50,7 +51,7 @@ while [[ $# -gt 0 ]]; do
         --trace-args) [[ $# -ge 2 ]] || die "--trace-args needs a value"; TRACE_ARGS="$2"; shift 2 ;;
         --repeat) need_value "$@"; REPEAT="$2"; shift 2 ;;
         --port) need_value "$@"; PORT="$2"; shift 2 ;;
-        -h|--help) sed -n '2,29p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,30p' "$0"; exit 0 ;;
         *) die "unknown argument '$1' (see --help)" ;;
     esac
 done
@@ -123,7 +124,7 @@ for run in $(seq 1 "$REPEAT"); do
 done
 
 # Each computed level tile as "layer zoom x y ms start end": its start and end in milliseconds
-# from the moment the request was sent (the log's UTC timestamp is the end).
+# from the moment curl was launched for the request (the log's UTC timestamp is the end).
 tail -n +$((MARK + 1)) "$WORK/server.log" | grep 'level tile computed' |
     sed -E 's/^[0-9-]+T([0-9]+):([0-9]+):([0-9.]+)Z.*layer="([a-z]+)" z=([0-9]+) x=(-?[0-9]+) y=(-?[0-9]+) ms=([0-9.]+).*/\1 \2 \3 \4 \5 \6 \7 \8/' |
     awk -v t0="$T0" '{
@@ -133,7 +134,7 @@ tail -n +$((MARK + 1)) "$WORK/server.log" | grep 'level tile computed' |
         printf "%s %s %s %s %.1f %.1f %.1f\n", $4, $5, $6, $7, $8, end - $8, end }' \
         >"$WORK/levels" || true
 echo "# level tiles the last run's request computed: $(wc -l <"$WORK/levels")"
-echo "# layer zoom: count, first start, last end (ms from the request)"
+echo "# layer zoom: count, first start, last end (ms from the launch of the request)"
 sort -k1,1 -k2,2n "$WORK/levels" | awk '
     { k = $1 " " $2; if (!(k in n)) { o[++c] = k; s[k] = $6; e[k] = $7 }
       n[k]++; if ($6 < s[k]) s[k] = $6; if ($7 > e[k]) e[k] = $7 }
