@@ -35,7 +35,6 @@ while (($#)); do
     esac
     shift
 done
-log() { echo "browser_test: $*" >&2; }
 
 if [[ ! -x /usr/bin/chromium ]]; then
     SUDO=""

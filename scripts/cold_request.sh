@@ -40,8 +40,6 @@ LINE=""
 REPEAT=1
 PORT=18098
 
-die() { echo "cold_request: $*" >&2; exit 2; }
-need_value() { [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value"; }
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --line) need_value "$@"; LINE="$2"; shift 2 ;;
@@ -70,8 +68,7 @@ WORK="$(mktemp -d)"
 SERVER_PID=""
 stop_server() {
     if [[ -n "$SERVER_PID" ]]; then
-        kill "$SERVER_PID" 2>/dev/null || true
-        wait "$SERVER_PID" 2>/dev/null || true
+        stop_process "$SERVER_PID"
         SERVER_PID=""
     fi
 }

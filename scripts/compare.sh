@@ -46,18 +46,8 @@ BUILD=1
 BIN=""
 STORE_DIR="$ROOT/target/loadtest-store"
 
-die() {
-    echo "compare: error: $*" >&2
-    exit 1
-}
-log() {
-    echo "compare: $*" >&2
-}
 usage() {
     sed -n '2,/^$/p' "${BASH_SOURCE[0]}" | sed -e 's/^# \{0,1\}//'
-}
-need_value() {
-    [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value (see --help)"
 }
 
 while [[ $# -gt 0 ]]; do

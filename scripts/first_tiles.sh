@@ -34,8 +34,6 @@ NO_STORED_LAYERS=""
 PORT=18095
 SETTLE=8
 
-die() { echo "first_tiles: $*" >&2; exit 2; }
-need_value() { [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value"; }
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --bin) need_value "$@"; BIN="$2"; shift 2 ;;
@@ -58,8 +56,7 @@ LOG="$(mktemp)"
 SERVER_PID=""
 stop_server() {
     if [[ -n "$SERVER_PID" ]]; then
-        kill "$SERVER_PID" 2>/dev/null || true
-        wait "$SERVER_PID" 2>/dev/null || true
+        stop_process "$SERVER_PID"
         SERVER_PID=""
     fi
 }

@@ -22,3 +22,38 @@ wait_until_up() {
         sleep 0.2
     done
 }
+
+# The name that prefixes the messages of the script that sources this file: its file name
+# without `.sh`.
+SCRIPT_NAME="$(basename "${BASH_SOURCE[1]:-$0}" .sh)"
+
+# log MESSAGE...: a progress line on stderr, prefixed with the script's name.
+log() { echo "$SCRIPT_NAME: $*" >&2; }
+
+# die MESSAGE...: an error line on stderr, prefixed with the script's name, then exit 1.
+die() {
+    echo "$SCRIPT_NAME: error: $*" >&2
+    exit 1
+}
+
+# need_value OPTION [VALUE...]: dies unless OPTION is followed by a non-empty value. Called as
+# `need_value "$@"` from an argument loop.
+need_value() { [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value (see --help)"; }
+
+# stop_process PID: asks process PID to stop (SIGTERM), gives it 10 s, then kills it (SIGKILL,
+# said on stderr), and collects its exit status. Nothing happens for a PID that has exited.
+stop_process() {
+    local pid=$1 i
+    if kill -0 "$pid" 2>/dev/null; then
+        kill -TERM "$pid" 2>/dev/null || true
+        for ((i = 0; i < 100; i++)); do
+            kill -0 "$pid" 2>/dev/null || break
+            sleep 0.1
+        done
+        if kill -0 "$pid" 2>/dev/null; then
+            log "process $pid did not stop in 10 s after SIGTERM; sending SIGKILL"
+            kill -KILL "$pid" 2>/dev/null || true
+        fi
+    fi
+    wait "$pid" 2>/dev/null || true
+}

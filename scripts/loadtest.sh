@@ -82,18 +82,6 @@ usage() {
     sed -n '2,/^$/p' "${BASH_SOURCE[0]}" | sed -e 's/^# \{0,1\}//'
 }
 
-die() {
-    echo "loadtest: error: $*" >&2
-    exit 1
-}
-
-log() {
-    echo "loadtest: $*" >&2
-}
-
-need_value() {
-    [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value (see --help)"
-}
 
 while [[ $# -gt 0 ]]; do
     case "$1" in
@@ -163,19 +151,7 @@ stop_server() {
     local pid="$SERVER_PID"
     SERVER_PID=""
     SERVER_RSS_KB="$(awk '/^VmHWM:/ { print $2 }' "/proc/$pid/status" 2>/dev/null || true)"
-    if kill -0 "$pid" 2>/dev/null; then
-        kill -TERM "$pid" 2>/dev/null || true
-        local i
-        for ((i = 0; i < 100; i++)); do
-            kill -0 "$pid" 2>/dev/null || break
-            sleep 0.1
-        done
-        if kill -0 "$pid" 2>/dev/null; then
-            log "server $pid did not stop in 10 s after SIGTERM; sending SIGKILL"
-            kill -KILL "$pid" 2>/dev/null || true
-        fi
-    fi
-    wait "$pid" 2>/dev/null || true
+    stop_process "$pid"
 }
 
 cleanup() {

@@ -50,8 +50,6 @@ while (($#)); do
     esac
     shift
 done
-log() { echo "replicas_test: $*" >&2; }
-die() { log "FAILED: $*"; exit 1; }
 
 # 1. Tools.
 if ! command -v nginx >/dev/null && [[ ! -x /usr/sbin/nginx ]]; then

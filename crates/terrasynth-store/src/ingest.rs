@@ -277,15 +277,8 @@ fn decode_rgb(
     }
     let mut grid = read_png_rgb(bytes, georef, &limits.read).map_err(|e| raster_error(what, e))?;
     // A layer keeps no mask of its own: transparent pixels become NaN (no class).
-    if let Some(valid) = grid.valid.take() {
-        ndarray::Zip::from(&mut grid.data)
-            .and(&valid)
-            .for_each(|v, &ok| {
-                if !ok {
-                    *v = f32::NAN;
-                }
-            });
-    }
+    let valid = grid.valid.take();
+    terrasynth_core::raster::nan_where_invalid(&mut grid.data, valid.as_ref());
     let raster = LayeredRaster::from_elevation(grid);
     check_raster(what, &raster, limits)?;
     Ok(raster)

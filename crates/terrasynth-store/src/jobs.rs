@@ -413,13 +413,7 @@ impl Jobs {
             for (name, data) in raster.layers.iter().skip(1) {
                 if name == CLASSES_LAYER {
                     let mut d = data.clone();
-                    if let Some(valid) = &raster.valid {
-                        ndarray::Zip::from(&mut d).and(valid).for_each(|v, &ok| {
-                            if !ok {
-                                *v = f32::NAN;
-                            }
-                        });
-                    }
+                    terrasynth_core::raster::nan_where_invalid(&mut d, raster.valid.as_ref());
                     // On the squared cells the exemplar's elevation takes (labels: nearest).
                     let square = terrasynth_core::raster::SquareCells::for_grid(
                         &grid.georef,

@@ -686,13 +686,7 @@ impl Catalogue {
                 "classes: exemplar `{id}` has no `{layer}` layer (upload it as a `{layer}` part)"
             ))
         })?;
-        if let Some(valid) = &raster.valid {
-            ndarray::Zip::from(&mut data).and(valid).for_each(|v, &ok| {
-                if !ok {
-                    *v = f32::NAN;
-                }
-            });
-        }
+        terrasynth_core::raster::nan_where_invalid(&mut data, raster.valid.as_ref());
         Ok(Grid::new(data, raster.georef))
     }
 

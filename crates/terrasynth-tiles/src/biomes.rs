@@ -37,7 +37,7 @@ use ndarray::{Array2, Zip};
 use terrasynth_core::dictionary::AnyDictionary;
 use terrasynth_core::landscape::biome_key;
 use terrasynth_core::raster::reproject::to_geographic;
-use terrasynth_core::raster::{Crs, Grid};
+use terrasynth_core::raster::{nan_where_invalid, Crs, Grid};
 use terrasynth_core::synth::{Level, Window};
 
 use crate::error::TileError;
@@ -107,14 +107,8 @@ impl BiomeWeights {
                 )));
             }
             let mut values = r.data.clone();
-            if let Some(valid) = &r.valid {
-                // Nodata cells (NaN in a GeoTIFF reads as nodata) are NaN weights.
-                Zip::from(&mut values).and(valid).for_each(|v, &ok| {
-                    if !ok {
-                        *v = f32::NAN;
-                    }
-                });
-            }
+            // Nodata cells (NaN in a GeoTIFF reads as nodata) are NaN weights.
+            nan_where_invalid(&mut values, r.valid.as_ref());
             if let Some(((row, col), v)) = values
                 .indexed_iter()
                 .find(|(_, v)| !v.is_finite() || **v < 0.0)

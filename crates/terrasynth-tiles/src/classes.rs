@@ -16,7 +16,7 @@ use ndarray::Array2;
 use terrasynth_core::landscape::classes::{class_values, class_weight};
 use terrasynth_core::landscape::{ClassesConfig, LandscapeError};
 use terrasynth_core::raster::reproject::to_geographic;
-use terrasynth_core::raster::{Crs, Grid};
+use terrasynth_core::raster::{nan_where_invalid, Crs, Grid};
 use terrasynth_core::synth::Window;
 
 use crate::biomes::BiomeWeights;
@@ -75,15 +75,7 @@ impl ClassWeights {
             .into());
         }
         let mut values = r.data.clone();
-        if let Some(valid) = &r.valid {
-            ndarray::Zip::from(&mut values)
-                .and(valid)
-                .for_each(|v, &ok| {
-                    if !ok {
-                        *v = f32::NAN;
-                    }
-                });
-        }
+        nan_where_invalid(&mut values, r.valid.as_ref());
         let codes = cfg.codes(&values)?;
         let reproject = |g: Grid| -> Result<Grid, TileError> {
             if matches!(g.georef.crs, Crs::Projected(_)) {

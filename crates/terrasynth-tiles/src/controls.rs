@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use terrasynth_core::landscape::LandscapeConfig;
 use terrasynth_core::raster::reproject::to_geographic;
-use terrasynth_core::raster::{Crs, Grid};
+use terrasynth_core::raster::{nan_where_invalid, Crs, Grid};
 use terrasynth_core::synth::Window;
 
 use crate::error::TileError;
@@ -91,13 +91,7 @@ impl SpeciesControls {
                 )));
             }
             let mut values = r.data.clone();
-            if let Some(valid) = &r.valid {
-                Zip::from(&mut values).and(valid).for_each(|v, &ok| {
-                    if !ok {
-                        *v = f32::NAN;
-                    }
-                });
-            }
+            nan_where_invalid(&mut values, r.valid.as_ref());
             let max = if c.mode == ControlMode::Replace {
                 1.0
             } else {

@@ -9,6 +9,19 @@ use super::georef::Georef;
 /// The name of the elevation layer in a [`LayeredRaster`].
 pub const ELEVATION: &str = "elevation";
 
+/// Sets `data` to NaN wherever the nodata mask `valid` (`true` where a value is valid, on
+/// `data`'s shape) is `false`: how a layer that keeps no mask of its own carries its nodata
+/// cells. `None` (every value valid) leaves `data` as it is.
+pub fn nan_where_invalid(data: &mut Array2<f32>, valid: Option<&Array2<bool>>) {
+    if let Some(valid) = valid {
+        ndarray::Zip::from(data).and(valid).for_each(|v, &ok| {
+            if !ok {
+                *v = f32::NAN;
+            }
+        });
+    }
+}
+
 /// A georeferenced single-layer raster of `f32` values, row 0 north.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid {
@@ -193,5 +206,31 @@ impl LayeredRaster {
             georef: self.georef,
             valid: self.valid.clone(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Masked cells become NaN, valid ones keep their value (a NaN already there stays), and
+    /// no mask changes nothing.
+    #[test]
+    fn nan_where_invalid_marks_exactly_the_masked_cells() {
+        let original = ndarray::array![[1.0, 2.0, f32::NAN], [4.0, 5.0, 6.0]];
+        let valid = ndarray::array![[true, false, true], [false, true, true]];
+        let mut data = original.clone();
+        nan_where_invalid(&mut data, Some(&valid));
+        for ((r, c), &v) in data.indexed_iter() {
+            if valid[[r, c]] {
+                assert_eq!(v.to_bits(), original[[r, c]].to_bits(), "({r}, {c})");
+            } else {
+                assert!(v.is_nan(), "({r}, {c}) is {v}");
+            }
+        }
+        let mut unmasked = original.clone();
+        nan_where_invalid(&mut unmasked, None);
+        assert_eq!(unmasked[[1, 0]], 4.0);
+        assert_eq!(unmasked[[0, 1]], 2.0);
     }
 }

@@ -21,7 +21,7 @@ pub use boxfilter::{box2, box_down2_rows, reduce2x2};
 pub use error::RasterError;
 pub use georef::{CellSizes, Crs, Georef};
 pub use geotiff::{read_geotiff, read_geotiff_file, write_geotiff, write_geotiff_file};
-pub use grid::{Grid, LayeredRaster, ELEVATION};
+pub use grid::{nan_where_invalid, Grid, LayeredRaster, ELEVATION};
 pub use io::{read_raster_file, sniff, write_raster_file, RasterFormat};
 pub use limits::ReadLimits;
 pub use openexr::{read_exr, write_exr};
