@@ -521,6 +521,17 @@ async fn landscape_layers_over_http() {
     let (_, dpng) = ok(format!("/tiles/mini/drainage/{z}/{x}/{y}.png")).await;
     let (_, _, dp) = decode_rgba(&dpng);
     assert!(dp.chunks(4).any(|p| p[3] > 100) && dp.chunks(4).any(|p| p[3] == 0));
+    // The PNG draws exactly the channels of the EXR's upstream area of 10⁶ m² or more (the
+    // world's `png_min_m2`, the default world's landscape), each at least at its floor opacity
+    // 0.4 (alpha 102), and areas of 10¹⁰ m² (`png_max_m2`) or more opaque.
+    for (p, &area) in dp.chunks(4).zip(a.iter()) {
+        match area {
+            v if v < 1e6 => assert_eq!(p[3], 0, "area {v}"),
+            v if v >= 1e10 => assert_eq!(p[3], 255, "area {v}"),
+            v => assert!(p[3] >= 102, "area {v}: alpha {}", p[3]),
+        }
+        assert_eq!(&p[..3], &[30, 100, 230]);
+    }
 
     // Splat: the 8 materials in two sets; every pixel's bytes sum to 255 over both.
     let (_, s0) = ok(format!("/tiles/mini/splat/{z}/{x}/{y}.png")).await;

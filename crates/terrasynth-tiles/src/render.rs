@@ -109,16 +109,8 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
         TileKind::DrainagePng => {
             let area = world.drainage_tile(z, x, y)?;
             let st = &world.landscape().drainage;
-            let (lo, hi) = (st.png_min_m2.log10(), st.png_max_m2.log10());
             let [cr, cg, cb] = st.colour;
-            let rgba = area.mapv(|a| {
-                let t = if a > 0.0 {
-                    ((f64::from(a).log10() - lo) / (hi - lo)).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                [cr, cg, cb, (t * 255.0).round() as u8]
-            });
+            let rgba = area.mapv(|a| [cr, cg, cb, st.alpha(a)]);
             encode_rgba_png(&rgba)?
         }
         TileKind::WaterExr => {

@@ -223,15 +223,20 @@ fn default_spread_scale() -> f32 {
     2000.0
 }
 
-/// How the drainage PNG overlay is drawn: alpha rises linearly in log10 area from `png_min_m2`
-/// (transparent) to `png_max_m2` (opaque) in `colour`.
+/// How the drainage PNG overlay is drawn, in `colour`: transparent below `png_min_m2`; from
+/// there the opacity rises linearly in log10 area from `png_min_opacity` to opaque at
+/// `png_max_m2` ([`DrainageStyle::alpha`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DrainageStyle {
-    /// Upstream area (m²) below which the overlay is transparent.
+    /// Upstream area (m²) below which the overlay is transparent: the smallest channel drawn.
     pub png_min_m2: f64,
     /// Upstream area (m²) at and above which it is opaque.
     pub png_max_m2: f64,
+    /// Opacity (0–1) of the smallest channel drawn (`png_min_m2`), so that the headwater
+    /// streams a deep zoom shows are visible, not only the rivers that drain large basins.
+    /// 0 makes it fade in from transparent.
+    pub png_min_opacity: f64,
     /// River colour `[r, g, b]`.
     pub colour: [u8; 3],
 }
@@ -241,8 +246,24 @@ impl Default for DrainageStyle {
         DrainageStyle {
             png_min_m2: 1e6,
             png_max_m2: 1e10,
+            png_min_opacity: 0.4,
             colour: [30, 100, 230],
         }
+    }
+}
+
+impl DrainageStyle {
+    /// The overlay's alpha (0–255) over a pixel of upstream area `area_m2` (0, negative or NaN:
+    /// transparent).
+    pub fn alpha(&self, area_m2: f32) -> u8 {
+        let area = f64::from(area_m2);
+        if area.is_nan() || area < self.png_min_m2 {
+            return 0;
+        }
+        let (lo, hi) = (self.png_min_m2.log10(), self.png_max_m2.log10());
+        let t = ((area.log10() - lo) / (hi - lo)).clamp(0.0, 1.0);
+        let opacity = self.png_min_opacity + (1.0 - self.png_min_opacity) * t;
+        (opacity * 255.0).round() as u8
     }
 }
 
@@ -419,6 +440,12 @@ impl LandscapeConfig {
         if !(d.png_min_m2 > 0.0 && d.png_max_m2 > d.png_min_m2 && d.png_max_m2.is_finite()) {
             return bad("drainage: need 0 < png_min_m2 < png_max_m2".into());
         }
+        if !(0.0..=1.0).contains(&d.png_min_opacity) {
+            return bad(format!(
+                "drainage: png_min_opacity {} must lie in 0..=1",
+                d.png_min_opacity
+            ));
+        }
         Ok(())
     }
 
@@ -515,6 +542,37 @@ mod tests {
         };
         assert_eq!(b.weight(1.0), 1.0);
         assert_eq!(b.weight(0.99), 0.0);
+    }
+
+    /// The drainage overlay's alpha: transparent below the smallest drawn channel and for no
+    /// area or NaN, the floor opacity at it, opaque from the largest on, linear in log10 area
+    /// between (values worked out by hand).
+    #[test]
+    fn drainage_alpha_has_its_floor_at_the_smallest_channel_and_rises_in_log_area() {
+        let st = DrainageStyle {
+            png_min_m2: 1e6,
+            png_max_m2: 1e10,
+            png_min_opacity: 0.4,
+            colour: [0, 0, 0],
+        };
+        assert_eq!(st.alpha(0.0), 0);
+        assert_eq!(st.alpha(-5.0), 0);
+        assert_eq!(st.alpha(f32::NAN), 0);
+        assert_eq!(st.alpha(999_000.0), 0);
+        assert_eq!(st.alpha(1e6), 102); // 0.4 · 255
+        assert_eq!(st.alpha(1e8), 179); // (0.4 + 0.6 · 0.5) · 255 = 178.5
+        assert_eq!(st.alpha(1e10), 255);
+        assert_eq!(st.alpha(1e12), 255);
+        assert_eq!(st.alpha(f32::INFINITY), 255);
+        let fade = DrainageStyle {
+            png_min_opacity: 0.0,
+            ..st
+        };
+        assert_eq!(fade.alpha(1e6), 0);
+        assert_eq!(fade.alpha(1e8), 128); // 127.5
+        let mut cfg = LandscapeConfig::default();
+        cfg.drainage.png_min_opacity = 1.5;
+        assert!(cfg.validate().is_err());
     }
 
     #[test]
