@@ -6,6 +6,7 @@
 # Usage: scripts/tile_hashes.sh [PORT]   (default 18473; a fresh store under target/)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/lib.sh
 PORT=${1:-18473}
 LIST=tests/data/default_world_tiles.sha256
 WORK=$(mktemp -d target/tile-hash.XXXXXX)
@@ -15,12 +16,8 @@ cargo build --release --quiet --bin terrasynth
 TERRASYNTH_STORE_DIR=$STORE target/release/terrasynth serve --listen "127.0.0.1:$PORT" \
     >"$WORK/server.log" 2>&1 &
 pid=$!
-trap 'kill $pid 2>/dev/null || true; rm -rf "$WORK"' EXIT
-for _ in $(seq 600); do
-    curl -sf "http://127.0.0.1:$PORT/worlds" >/dev/null && break
-    kill -0 $pid 2>/dev/null || { cat "$WORK/server.log" >&2; exit 1; }
-    sleep 1
-done
+trap 'stop_process $pid; rm -rf "$WORK"' EXIT
+wait_until_up "http://127.0.0.1:$PORT/worlds" "$pid" 600 "$WORK/server.log" || die "the server did not start"
 tmp=$(mktemp)
 while read -r _ path; do
     [[ -z "$path" ]] && continue
