@@ -110,7 +110,8 @@ pub fn render(world: &World, req: &TileRequest) -> Result<Vec<u8>, TileError> {
             let area = world.drainage_tile(z, x, y)?;
             let st = &world.landscape().drainage;
             let [cr, cg, cb] = st.colour;
-            let rgba = area.mapv(|a| [cr, cg, cb, st.alpha(a)]);
+            let alpha = st.alpha_ramp();
+            let rgba = area.mapv(|a| [cr, cg, cb, alpha(a)]);
             encode_rgba_png(&rgba)?
         }
         TileKind::WaterExr => {

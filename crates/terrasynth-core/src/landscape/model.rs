@@ -225,7 +225,7 @@ fn default_spread_scale() -> f32 {
 
 /// How the drainage PNG overlay is drawn, in `colour`: transparent below `png_min_m2`; from
 /// there the opacity rises linearly in log10 area from `png_min_opacity` to opaque at
-/// `png_max_m2` ([`DrainageStyle::alpha`]).
+/// `png_max_m2` ([`DrainageStyle::alpha_ramp`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DrainageStyle {
@@ -253,17 +253,19 @@ impl Default for DrainageStyle {
 }
 
 impl DrainageStyle {
-    /// The overlay's alpha (0–255) over a pixel of upstream area `area_m2` (0, negative or NaN:
-    /// transparent).
-    pub fn alpha(&self, area_m2: f32) -> u8 {
-        let area = f64::from(area_m2);
-        if area.is_nan() || area < self.png_min_m2 {
-            return 0;
+    /// The overlay's alpha (0–255) as a function of a pixel's upstream area in m² (0, negative
+    /// or NaN: transparent), its constants worked out once for a whole tile.
+    pub fn alpha_ramp(&self) -> impl Fn(f32) -> u8 {
+        let (min, floor) = (self.png_min_m2, self.png_min_opacity);
+        let (lo, hi) = (min.log10(), self.png_max_m2.log10());
+        move |area_m2| {
+            let area = f64::from(area_m2);
+            if area.is_nan() || area < min {
+                return 0;
+            }
+            let t = ((area.log10() - lo) / (hi - lo)).clamp(0.0, 1.0);
+            ((floor + (1.0 - floor) * t) * 255.0).round() as u8
         }
-        let (lo, hi) = (self.png_min_m2.log10(), self.png_max_m2.log10());
-        let t = ((area.log10() - lo) / (hi - lo)).clamp(0.0, 1.0);
-        let opacity = self.png_min_opacity + (1.0 - self.png_min_opacity) * t;
-        (opacity * 255.0).round() as u8
     }
 }
 
@@ -555,21 +557,22 @@ mod tests {
             png_min_opacity: 0.4,
             colour: [0, 0, 0],
         };
-        assert_eq!(st.alpha(0.0), 0);
-        assert_eq!(st.alpha(-5.0), 0);
-        assert_eq!(st.alpha(f32::NAN), 0);
-        assert_eq!(st.alpha(999_000.0), 0);
-        assert_eq!(st.alpha(1e6), 102); // 0.4 · 255
-        assert_eq!(st.alpha(1e8), 179); // (0.4 + 0.6 · 0.5) · 255 = 178.5
-        assert_eq!(st.alpha(1e10), 255);
-        assert_eq!(st.alpha(1e12), 255);
-        assert_eq!(st.alpha(f32::INFINITY), 255);
+        let alpha = st.alpha_ramp();
+        assert_eq!(alpha(0.0), 0);
+        assert_eq!(alpha(-5.0), 0);
+        assert_eq!(alpha(f32::NAN), 0);
+        assert_eq!(alpha(999_000.0), 0);
+        assert_eq!(alpha(1e6), 102); // 0.4 · 255
+        assert_eq!(alpha(1e8), 179); // (0.4 + 0.6 · 0.5) · 255 = 178.5
+        assert_eq!(alpha(1e10), 255);
+        assert_eq!(alpha(1e12), 255);
+        assert_eq!(alpha(f32::INFINITY), 255);
         let fade = DrainageStyle {
             png_min_opacity: 0.0,
             ..st
         };
-        assert_eq!(fade.alpha(1e6), 0);
-        assert_eq!(fade.alpha(1e8), 128); // 127.5
+        assert_eq!(fade.alpha_ramp()(1e6), 0);
+        assert_eq!(fade.alpha_ramp()(1e8), 128); // 127.5
         let mut cfg = LandscapeConfig::default();
         cfg.drainage.png_min_opacity = 1.5;
         assert!(cfg.validate().is_err());
