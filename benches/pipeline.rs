@@ -5,7 +5,8 @@
 //! the instances of a zoom-15 forest tile (instances per second); one gradient-domain level
 //! (`gradient_level`, output points per second, issue #20) with a default tile set built from the
 //! same grid; the drainage routing of one tile's region (`routing`: Priority-Flood+ε, D8
-//! receivers, accumulation on 512² of the real terrain).
+//! receivers, accumulation, and the layer's Priority-Flood to the spill levels and D8 receivers
+//! with the flats resolved, on 512² of the real terrain).
 //! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances`, `-- gradient_level`, `-- routing` for a part).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
@@ -272,11 +273,13 @@ fn real_terrain_512() -> (Array2<f32>, terrasynth_core::raster::CellSizes) {
 
 /// The drainage layer's routing of one amplified tile's region up to zoom 13 (the tile and its
 /// 128-px halo: 512²) on a window of the real terrain: Priority-Flood+ε, D8 receivers and the
-/// accumulation (cells per second).
+/// accumulation, and the layer's routing, Priority-Flood to the spill levels and D8 receivers
+/// with the flats resolved (cells per second).
 fn bench_routing(c: &mut Criterion) {
     use terrasynth_core::analysis;
     let (z, cells) = real_terrain_512();
     let filled = analysis::priority_flood_fill(&z);
+    let filled_flat = analysis::priority_flood_fill_flat(&z);
     let receivers = analysis::d8_receivers(&filled, &cells);
     let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
     let mut g = c.benchmark_group("routing/512²");
@@ -286,6 +289,12 @@ fn bench_routing(c: &mut Criterion) {
     });
     g.bench_function("d8_receivers", |b| {
         b.iter(|| analysis::d8_receivers(&filled, &cells))
+    });
+    g.bench_function("priority_flood_fill_flat", |b| {
+        b.iter(|| analysis::priority_flood_fill_flat(&z))
+    });
+    g.bench_function("d8_receivers_over_flats", |b| {
+        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, &cells, 128))
     });
     g.bench_function("accumulate_sources", |b| {
         b.iter(|| analysis::accumulate_sources(&receivers, &sources))

@@ -319,9 +319,15 @@ fn derive(inputs: &Inputs, water: Option<&BaseWater>, landscape: &LandscapeConfi
     let window = *window;
     let is_sea =
         |r: usize, c: usize| water.is_some_and(|w| cut_at(&w.sea, w.window, window, r, c) > 0.0);
-    // D8 on the filled surface: lakes pass their inflow on at their outlet; flow ends where it
-    // enters the sea (sea cells are sinks) and nothing is routed from uncovered or sea cells.
-    let mut receivers = analysis::d8_receivers(&analysis::priority_flood_fill(heights), cells);
+    // D8 on the surface filled to its spill levels, flats drained towards their outlets and
+    // away from higher ground (Barnes et al. 2014): lakes pass their inflow on at their outlet;
+    // flow ends where it enters the sea (sea cells are sinks) and nothing is routed from
+    // uncovered or sea cells.
+    let mut receivers = analysis::d8_receivers_over_flats(
+        &analysis::priority_flood_fill_flat(heights),
+        cells,
+        usize::MAX,
+    );
     let sink = |r: usize, c: usize| is_sea(r, c) || !covered[[r, c]];
     for ((r, c), code) in receivers.indexed_iter_mut() {
         if is_sea(r, c) {

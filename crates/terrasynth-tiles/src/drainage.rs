@@ -2,7 +2,8 @@
 //!
 //! - **Native zoom `z_b`**: cut from the whole-world D8 accumulation ([`crate::base_layers`]).
 //! - **Amplified zooms**: D8 on the amplified surface over the tile plus a halo of
-//!   [`drain_halo`] pixels (priority-flood filled), with sources = cell areas plus the parent
+//!   [`drain_halo`] pixels (priority-flood filled to the spill levels, flats drained by
+//!   [`analysis::d8_receivers_over_flats`], resolved in full up to the halo's width), with sources = cell areas plus the parent
 //!   level's upstream area injected where parent flow enters the region: every parent pixel of
 //!   the ring around the region whose steepest descent points into it hands its area to the
 //!   lowest child of the pixel it drains into. The region is a function of the tile's global coordinates only, so a
@@ -151,8 +152,14 @@ impl DrainageLevels {
         let pa = self.window(elevation, whole, water, z - 1, aw)?;
         let heights = elevation.window(z, region)?;
         let cells = extent.cell_sizes(z, region.row0, region.rows);
-        let filled = analysis::priority_flood_fill(&heights);
-        let mut receivers = analysis::d8_receivers(&filled, &cells);
+        // Filled to the spill levels; flats drain towards their outlets and away from higher
+        // ground (converging into a flat valley floor's middle, not down parallel lines), those
+        // wider than the halo or on the region's border ring towards their outlets only (a flat
+        // resolved in full that reaches the tile's border lies inside the neighbour's region too,
+        // so both give it the same directions).
+        let filled = analysis::priority_flood_fill_flat(&heights);
+        let flat_span = usize::try_from(h).unwrap_or(0);
+        let mut receivers = analysis::d8_receivers_over_flats(&filled, &cells, flat_span);
         // Nothing is routed outside the base's coverage or from the sea: no sources there; flow
         // ends where it enters the sea.
         let coverage = elevation.coverage_window(z, region)?;

@@ -30,6 +30,7 @@ mod common;
 pub mod contour;
 pub mod derivatives;
 pub mod fft;
+pub mod flats;
 pub mod flood;
 pub mod flow;
 pub mod hillshade;
@@ -50,6 +51,7 @@ pub use derivatives::{
     aspect, curvature, gradient, northness, slope, slope_degrees, slope_northness_shade,
 };
 pub use fft::{dft_naive, fft, fft2, Complex, Radix2};
+pub use flats::{d8_receivers_over_flats, resolve_flats};
 pub use flood::{flood_extent, priority_flood_fill, priority_flood_fill_flat};
 pub use flow::{
     accumulate_sources, d8_receivers, flow_accumulation_d8, flow_accumulation_from_receivers,

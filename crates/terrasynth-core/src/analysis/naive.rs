@@ -197,6 +197,151 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
     })
 }
 
+/// [`super::resolve_flats`] by repeated relaxation: the flat cells, the two distances (towards
+/// the low edges, away from the high edges) as fixed points of `d = min(d, d_neighbour + 1)` over
+/// equal-valued flat neighbours, each flat's largest away distance by propagating the maximum,
+/// each flat's bounding box the same way (open flats: touching the border ring or spanning more
+/// than `max_span` cells, without the away term), then the steepest fall of the mask per flat
+/// cell.
+pub fn resolve_flats(
+    filled: &Array2<f32>,
+    cs: &CellSizes,
+    max_span: usize,
+    receivers: &mut Array2<u8>,
+) {
+    let (rows, cols) = filled.dim();
+    if rows < 3 || cols < 3 || receivers.dim() != (rows, cols) {
+        return;
+    }
+    let none = super::D8_NONE;
+    let nbrs = |r: usize, c: usize| neighbours(rows, cols, cs, r, c);
+    let flat = Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let interior = r > 0 && c > 0 && r + 1 < rows && c + 1 < cols;
+        interior
+            && receivers[[r, c]] == none
+            && filled[[r, c]].is_finite()
+            && nbrs(r, c)
+                .iter()
+                .flatten()
+                .all(|&(nr, nc, _, _)| !filled[[nr, nc]].is_nan())
+    });
+    let same_flat = |r: usize, c: usize, nr: usize, nc: usize| {
+        flat[[nr, nc]] && filled[[nr, nc]] == filled[[r, c]]
+    };
+    // A distance from the cells next to an edge, through equal-valued flat cells (0: unreached).
+    let distance = |edge: &dyn Fn(usize, usize, usize, usize) -> bool| {
+        let mut d = Array2::<u32>::zeros((rows, cols));
+        for ((r, c), v) in d.indexed_iter_mut() {
+            if flat[[r, c]]
+                && nbrs(r, c)
+                    .iter()
+                    .flatten()
+                    .any(|&(nr, nc, _, _)| edge(r, c, nr, nc))
+            {
+                *v = 1;
+            }
+        }
+        loop {
+            let mut changed = false;
+            for r in 0..rows {
+                for c in 0..cols {
+                    if !flat[[r, c]] {
+                        continue;
+                    }
+                    for &(nr, nc, _, _) in nbrs(r, c).iter().flatten() {
+                        let dn = d[[nr, nc]];
+                        if same_flat(r, c, nr, nc)
+                            && dn > 0
+                            && (d[[r, c]] == 0 || dn + 1 < d[[r, c]])
+                        {
+                            d[[r, c]] = dn + 1;
+                            changed = true;
+                        }
+                    }
+                }
+            }
+            if !changed {
+                return d;
+            }
+        }
+    };
+    let towards = distance(&|r, c, nr, nc| !flat[[nr, nc]] && filled[[nr, nc]] == filled[[r, c]]);
+    let away = distance(&|r, c, nr, nc| filled[[nr, nc]] > filled[[r, c]]);
+    // Each flat's largest away distance and bounding box (smallest and largest row and column,
+    // the smallest as a negated maximum), spread over the flat.
+    let mut most = away.clone();
+    let mut extent = Array2::from_shape_fn((rows, cols), |(r, c)| {
+        [-(r as i64), r as i64, -(c as i64), c as i64]
+    });
+    loop {
+        let mut changed = false;
+        for r in 0..rows {
+            for c in 0..cols {
+                for &(nr, nc, _, _) in nbrs(r, c).iter().flatten() {
+                    if !flat[[r, c]] || !same_flat(r, c, nr, nc) {
+                        continue;
+                    }
+                    if most[[nr, nc]] > most[[r, c]] {
+                        most[[r, c]] = most[[nr, nc]];
+                        changed = true;
+                    }
+                    for k in 0..4 {
+                        if extent[[nr, nc]][k] > extent[[r, c]][k] {
+                            extent[[r, c]][k] = extent[[nr, nc]][k];
+                            changed = true;
+                        }
+                    }
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    let span = i64::try_from(max_span).unwrap_or(i64::MAX);
+    let open = |r: usize, c: usize| {
+        let [r_lo, r_hi, c_lo, c_hi] = extent[[r, c]];
+        let (r_lo, c_lo) = (-r_lo, -c_lo);
+        let touches = r_lo <= 1 || c_lo <= 1 || r_hi + 2 >= rows as i64 || c_hi + 2 >= cols as i64;
+        touches || r_hi - r_lo + 1 > span || c_hi - c_lo + 1 > span
+    };
+    let mask = Array2::from_shape_fn((rows, cols), |(r, c)| {
+        if !flat[[r, c]] || towards[[r, c]] == 0 {
+            0
+        } else if away[[r, c]] > 0 && !open(r, c) {
+            2 * towards[[r, c]] + most[[r, c]] - away[[r, c]]
+        } else {
+            2 * towards[[r, c]]
+        }
+    });
+    for r in 0..rows {
+        for c in 0..cols {
+            if !flat[[r, c]] || mask[[r, c]] == 0 {
+                continue;
+            }
+            let mut best = 0.0;
+            let mut code = none;
+            for (k, n) in nbrs(r, c).iter().enumerate() {
+                let Some((nr, nc, dist, _)) = *n else {
+                    continue;
+                };
+                if filled[[nr, nc]] != filled[[r, c]] {
+                    continue;
+                }
+                let m = if flat[[nr, nc]] { mask[[nr, nc]] } else { 0 };
+                if m < mask[[r, c]] {
+                    let slope = f64::from(mask[[r, c]] - m) / dist;
+                    if slope > best {
+                        best = slope;
+                        code = k as u8;
+                    }
+                }
+            }
+            receivers[[r, c]] = code;
+        }
+    }
+}
+
 /// D8 upstream area by brute force: every cell walks down its steepest-descent chain
 /// ([`d8_receivers`] of this module) to a sink, adding its own area to every
 /// cell on the way.

@@ -145,6 +145,55 @@ fn rel_close(a: f64, b: f64, tol: f64) -> bool {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(96))]
 
+    /// Drainage across flats (breadth-first distances and one pass) equals the relaxation
+    /// reference on grids full of flats, with NaN cells (outlets) sprinkled in or not; and it
+    /// drains every cell: each chain of receivers runs without ascending to a cell without a
+    /// receiver that is an outlet (on the border, NaN or next to NaN), never to a flat one.
+    /// Flats wider than `max_span` (0: none resolved in full; up to the whole grid) and flats on
+    /// the border ring drain towards their low edges only, in both.
+    #[test]
+    fn flat_resolution_equals_naive_and_drains_every_cell(
+        (z, cs) in grid_strategy(),
+        seed in 0u64..1000,
+        holes in 0usize..3,
+        max_span in prop_oneof![0usize..24, Just(usize::MAX)],
+    ) {
+        let mut z = z;
+        let mut lcg = Lcg(seed);
+        for _ in 0..holes {
+            let (rows, cols) = z.dim();
+            let r = (lcg.next() * rows as f64) as usize;
+            let c = (lcg.next() * cols as f64) as usize;
+            z[[r, c]] = f32::NAN;
+        }
+        let filled = analysis::priority_flood_fill_flat(&z);
+        let mut fast = analysis::d8_receivers(&filled, &cs);
+        let mut slow = fast.clone();
+        analysis::resolve_flats(&filled, &cs, max_span, &mut fast);
+        naive::resolve_flats(&filled, &cs, max_span, &mut slow);
+        prop_assert_eq!(&fast, &slow);
+        prop_assert_eq!(&fast, &analysis::d8_receivers_over_flats(&filled, &cs, max_span));
+        let (rows, cols) = z.dim();
+        let outlet = |r: usize, c: usize| {
+            r == 0 || c == 0 || r + 1 == rows || c + 1 == cols || filled[[r, c]].is_nan()
+                || D8_OFFSETS.iter().any(|&(dr, dc)| {
+                    filled[[(r as isize + dr) as usize, (c as isize + dc) as usize]].is_nan()
+                })
+        };
+        for ((r0, c0), _) in z.indexed_iter() {
+            let (mut r, mut c) = (r0, c0);
+            let mut steps = 0;
+            while let Some(&(dr, dc)) = D8_OFFSETS.get(fast[[r, c]] as usize) {
+                let (nr, nc) = ((r as isize + dr) as usize, (c as isize + dc) as usize);
+                prop_assert!(filled[[nr, nc]] <= filled[[r, c]], "ascends at ({}, {})", r, c);
+                (r, c) = (nr, nc);
+                steps += 1;
+                prop_assert!(steps <= rows * cols, "a cycle through ({}, {})", r0, c0);
+            }
+            prop_assert!(outlet(r, c), "({}, {}) ends at ({}, {}), not an outlet", r0, c0, r, c);
+        }
+    }
+
     /// Priority-Flood without ε equals Planchon–Darboux relaxation exactly.
     #[test]
     fn flat_fill_equals_naive((z, _cs) in grid_strategy()) {
@@ -577,6 +626,85 @@ fn flood_extent_of_known_pit() {
         assert_eq!(flat[[r, c]], 15.0);
     }
     assert!((analysis::flood_extent(&z) - 400.0 / 36.0).abs() < 1e-12);
+}
+
+/// A flat valley floor 11 cells wide between walls that rise away from it, closed at its east
+/// end, its west end stepping down to the grid's border (or, with `open_west`, lying on the
+/// border ring itself), as accumulated by D8 over flats with `max_span`.
+fn flat_valley_accumulation(open_west: bool, max_span: usize) -> (Array2<f32>, Array2<f64>) {
+    let (rows, cols) = (21usize, 43usize);
+    let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let off_floor = (r as f32 - 10.0).abs() - 5.0;
+        if off_floor > 0.0 {
+            10.0 * off_floor
+        } else if c + 2 >= cols {
+            50.0 // the valley's closed east end
+        } else if open_west || c >= 2 {
+            0.0
+        } else {
+            c as f32 - 2.0 // two steps down to the border: the floor's outlet
+        }
+    });
+    let cs = CellSizes {
+        dx: vec![1.0; rows],
+        dy: vec![1.0; rows],
+    };
+    // Already without depressions: the floor drains through its west end.
+    let filled = analysis::priority_flood_fill_flat(&z);
+    assert_eq!(filled, z, "no depression to fill");
+    let acc = analysis::flow_accumulation_from_receivers(
+        &analysis::d8_receivers_over_flats(&filled, &cs, max_span),
+        &cs,
+    );
+    (z, acc)
+}
+
+/// Resolved in full (inside the grid, narrower than `max_span`), the flow over the valley floor
+/// converges into its middle row, which carries nearly the whole valley to the outlet, where
+/// Priority-Flood+ε sends each row down its own parallel line. An open flat (on the border ring,
+/// or wider than `max_span`) drains towards its low edges only: parallel lines again.
+#[test]
+fn flow_over_a_flat_valley_floor_converges_into_its_middle() {
+    let (z, over_flats) = flat_valley_accumulation(false, 64);
+    // At the floor's west end (column 2, the low edge). The floor holds 11 × 39 cells of 1 m²
+    // (columns 2–40; its flat part, columns 3–40, spans 38); the closed end and the inner walls
+    // drain into it too.
+    assert!(
+        over_flats[[10, 2]] >= 650.0,
+        "middle row carries {}",
+        over_flats[[10, 2]]
+    );
+    for r in (5..=15).filter(|&r| r != 10) {
+        assert!(
+            over_flats[[r, 2]] < 20.0,
+            "row {r} carries {}",
+            over_flats[[r, 2]]
+        );
+    }
+    let cs = CellSizes {
+        dx: vec![1.0; z.nrows()],
+        dy: vec![1.0; z.nrows()],
+    };
+    // The ε-gradient: every row inside the floor carries its own 39 cells and the closed end's.
+    let eps = analysis::flow_accumulation_d8(&analysis::priority_flood_fill(&z), &cs);
+    for r in 6..=14 {
+        assert!(
+            (39.0..=41.0).contains(&eps[[r, 2]]),
+            "row {r} carries {}",
+            eps[[r, 2]]
+        );
+    }
+    // Open flats: wider (38 columns) than a span of 37, or on the border ring.
+    for (open_west, max_span, column) in [(false, 37, 2), (true, 64, 1)] {
+        let (_, open) = flat_valley_accumulation(open_west, max_span);
+        for r in 6..=14 {
+            assert!(
+                open[[r, column]] < 100.0,
+                "open {open_west}, span {max_span}: row {r} carries {}",
+                open[[r, column]]
+            );
+        }
+    }
 }
 
 #[test]
