@@ -294,7 +294,7 @@ fn bench_routing(c: &mut Criterion) {
         b.iter(|| analysis::priority_flood_fill_flat(&z))
     });
     g.bench_function("d8_receivers_over_flats", |b| {
-        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, &cells, 128))
+        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, &cells, 128, None))
     });
     g.bench_function("accumulate_sources", |b| {
         b.iter(|| analysis::accumulate_sources(&receivers, &sources))

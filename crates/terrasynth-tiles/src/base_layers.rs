@@ -327,6 +327,7 @@ fn derive(inputs: &Inputs, water: Option<&BaseWater>, landscape: &LandscapeConfi
         &analysis::priority_flood_fill_flat(heights),
         cells,
         usize::MAX,
+        None,
     );
     let sink = |r: usize, c: usize| is_sea(r, c) || !covered[[r, c]];
     for ((r, c), code) in receivers.indexed_iter_mut() {

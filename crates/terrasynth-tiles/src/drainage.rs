@@ -3,7 +3,8 @@
 //! - **Native zoom `z_b`**: cut from the whole-world D8 accumulation ([`crate::base_layers`]).
 //! - **Amplified zooms**: D8 on the amplified surface over the tile plus a halo of
 //!   [`drain_halo`] pixels (priority-flood filled to the spill levels, flats drained by
-//!   [`analysis::d8_receivers_over_flats`], resolved in full up to the halo's width), with sources = cell areas plus the parent
+//!   [`analysis::d8_receivers_over_flats`], resolved in full up to the halo's width, wider
+//!   ones guided by the parent level's rivers, [`FLAT_GUIDE_M2`]), with sources = cell areas plus the parent
 //!   level's upstream area injected where parent flow enters the region: every parent pixel of
 //!   the ring around the region whose steepest descent points into it hands its area to the
 //!   lowest child of the pixel it drains into. The region is a function of the tile's global coordinates only, so a
@@ -51,6 +52,11 @@ pub fn drain_halo(z: u8) -> i64 {
     let px = (DRAIN_HALO_M / crate::mercator::pixel_size_m(z)).ceil() as i64;
     (px + px % 2).clamp(MIN_DRAIN_HALO, MAX_DRAIN_HALO)
 }
+
+/// Upstream area (m²) from which a parent-level pixel guides the flow across a wide flat of its
+/// children ([`analysis::flats`]): a river of 100 km², so that a lake wider than the routing
+/// halo is crossed by the channel its parent level drew across it.
+pub const FLAT_GUIDE_M2: f32 = 1e8;
 
 /// The drainage levels of a world.
 #[derive(Debug)]
@@ -154,12 +160,16 @@ impl DrainageLevels {
         let cells = extent.cell_sizes(z, region.row0, region.rows);
         // Filled to the spill levels; flats drain towards their outlets and away from higher
         // ground (converging into a flat valley floor's middle, not down parallel lines), those
-        // wider than the halo or on the region's border ring towards their outlets only (a flat
-        // resolved in full that reaches the tile's border lies inside the neighbour's region too,
-        // so both give it the same directions).
+        // wider than the halo or on the region's border ring towards their outlets and the
+        // parent level's rivers across them (a flat resolved in full that reaches the tile's
+        // border lies inside the neighbour's region too, so both give it the same directions).
         let filled = analysis::priority_flood_fill_flat(&heights);
         let flat_span = usize::try_from(h).unwrap_or(0);
-        let mut receivers = analysis::d8_receivers_over_flats(&filled, &cells, flat_span);
+        let guide = Array2::from_shape_fn(heights.dim(), |(r, c)| {
+            pa[[r / 2 + 1, c / 2 + 1]] >= FLAT_GUIDE_M2
+        });
+        let mut receivers =
+            analysis::d8_receivers_over_flats(&filled, &cells, flat_span, Some(&guide));
         // Nothing is routed outside the base's coverage or from the sea: no sources there; flow
         // ends where it enters the sea.
         let coverage = elevation.coverage_window(z, region)?;

@@ -22,6 +22,13 @@
 //! tile's border lies wholly inside the regions of both tiles beside that border, so both give
 //! its cells the same directions.
 //!
+//! **Guides.** An open flat holding *guide* cells (the drainage layer's: cells whose parent-level
+//! pixel carries a river) drains towards its low edges and towards its guide cells: mask
+//! `2 · towards + guided`, with `guided` the breadth-first distance from the flat's guide cells.
+//! Like the away distance it changes by at most 1 from a cell to its neighbour, so every cell
+//! still has a lower neighbour on the way to a low edge; unlike it, it needs no whole-flat
+//! maximum. The flow converges on the parent level's channel across the flat and follows it.
+//!
 //! [`super::naive::resolve_flats`] computes the same by repeated relaxation; the property tests
 //! compare the two.
 
@@ -36,25 +43,28 @@ use crate::raster::CellSizes;
 /// D8 receivers of `filled` (a grid without depressions, flats left flat): the steepest descent
 /// ([`d8_receivers`]) where a cell has a lower neighbour, and across flats the direction of the
 /// combined gradient ([`resolve_flats`]; open flats, see the module's documentation, towards
-/// their low edges only).
+/// their low edges and their `guide` cells only).
 pub fn d8_receivers_over_flats(
     filled: &Array2<f32>,
     cs: &CellSizes,
     max_span: usize,
+    guide: Option<&Array2<bool>>,
 ) -> Array2<u8> {
     let mut receivers = d8_receivers(filled, cs);
-    resolve_flats(filled, cs, max_span, &mut receivers);
+    resolve_flats(filled, cs, max_span, guide, &mut receivers);
     receivers
 }
 
 /// Gives every flat cell of `filled` (see the module's documentation) a receiver in `receivers`
 /// (the D8 receivers of `filled`), pointing down the combined gradient. A flat cell that no low
 /// edge can be reached from (none, after a fill) keeps [`D8_NONE`]. Flats that touch the border
-/// ring or span more than `max_span` cells drain towards their low edges only.
+/// ring or span more than `max_span` cells drain towards their low edges only, and towards the
+/// `guide` cells they hold (a grid of `filled`'s shape; another shape counts as none).
 pub fn resolve_flats(
     filled: &Array2<f32>,
     cs: &CellSizes,
     max_span: usize,
+    guide: Option<&Array2<bool>>,
     receivers: &mut Array2<u8>,
 ) {
     let (rows, cols) = filled.dim();
@@ -67,7 +77,8 @@ pub fn resolve_flats(
         return;
     }
     let geo = dir_geometry(cs, rows);
-    let mask = grid.mask(max_span);
+    let guide = guide.filter(|g| g.dim() == (rows, cols)).map(values);
+    let mask = grid.mask(max_span, guide.as_deref());
     if receivers.as_slice().is_none() {
         *receivers = receivers.as_standard_layout().into_owned();
     }
@@ -166,14 +177,22 @@ impl<'a> FlatGrid<'a> {
         dist
     }
 
-    /// The combined mask of every flat cell: `2 · towards + away` (`2 · towards` on open flats),
-    /// 0 elsewhere and on flat cells no low edge reaches.
-    fn mask(&self, max_span: usize) -> Vec<u32> {
+    /// The combined mask of every flat cell: `2 · towards + away` (`2 · towards + guided` on
+    /// open flats), 0 elsewhere and on flat cells no low edge reaches.
+    fn mask(&self, max_span: usize, guide: Option<&[bool]>) -> Vec<u32> {
         let (rows, cols) = (self.rows, self.cols);
         // Towards lower: from the flat cells next to an equal-valued cell that drains.
         let towards = self.distances(&self.seeds(|here, there, flat| there == here && !flat));
         // Away from higher: from the flat cells next to higher ground.
         let away = self.distances(&self.seeds(|here, there, _| there > here));
+        // Towards the guide cells (0 everywhere on a flat without one).
+        let guided = match guide {
+            Some(g) => {
+                let seeds: Vec<usize> = self.cells.iter().copied().filter(|&i| g[i]).collect();
+                self.distances(&seeds)
+            }
+            None => vec![0; rows * cols],
+        };
         // The largest away distance of each flat (a connected set of equal-valued flat cells),
         // or `None` for an open flat (touching the border ring or spanning more than
         // `max_span`).
@@ -211,7 +230,8 @@ impl<'a> FlatGrid<'a> {
             }
             let a = match most[label[i] as usize] {
                 Some(m) if away[i] > 0 => m - away[i],
-                _ => 0,
+                Some(_) => 0,
+                None => guided[i],
             };
             mask[i] = 2 * towards[i] + a;
         }

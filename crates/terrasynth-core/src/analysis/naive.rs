@@ -201,12 +201,13 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
 /// the low edges, away from the high edges) as fixed points of `d = min(d, d_neighbour + 1)` over
 /// equal-valued flat neighbours, each flat's largest away distance by propagating the maximum,
 /// each flat's bounding box the same way (open flats: touching the border ring or spanning more
-/// than `max_span` cells, without the away term), then the steepest fall of the mask per flat
-/// cell.
+/// than `max_span` cells, with the distance from their `guide` cells instead of the away term),
+/// then the steepest fall of the mask per flat cell.
 pub fn resolve_flats(
     filled: &Array2<f32>,
     cs: &CellSizes,
     max_span: usize,
+    guide: Option<&Array2<bool>>,
     receivers: &mut Array2<u8>,
 ) {
     let (rows, cols) = filled.dim();
@@ -228,16 +229,12 @@ pub fn resolve_flats(
     let same_flat = |r: usize, c: usize, nr: usize, nc: usize| {
         flat[[nr, nc]] && filled[[nr, nc]] == filled[[r, c]]
     };
-    // A distance from the cells next to an edge, through equal-valued flat cells (0: unreached).
-    let distance = |edge: &dyn Fn(usize, usize, usize, usize) -> bool| {
+    // A distance from the flat cells where `seed` holds, through equal-valued flat cells (0:
+    // unreached).
+    let distance = |seed: &dyn Fn(usize, usize) -> bool| {
         let mut d = Array2::<u32>::zeros((rows, cols));
         for ((r, c), v) in d.indexed_iter_mut() {
-            if flat[[r, c]]
-                && nbrs(r, c)
-                    .iter()
-                    .flatten()
-                    .any(|&(nr, nc, _, _)| edge(r, c, nr, nc))
-            {
+            if flat[[r, c]] && seed(r, c) {
                 *v = 1;
             }
         }
@@ -265,8 +262,23 @@ pub fn resolve_flats(
             }
         }
     };
-    let towards = distance(&|r, c, nr, nc| !flat[[nr, nc]] && filled[[nr, nc]] == filled[[r, c]]);
-    let away = distance(&|r, c, nr, nc| filled[[nr, nc]] > filled[[r, c]]);
+    // Next to a neighbour for which `edge(r, c, nr, nc)` holds.
+    let next_to = |edge: &dyn Fn(usize, usize, usize, usize) -> bool, r: usize, c: usize| {
+        nbrs(r, c)
+            .iter()
+            .flatten()
+            .any(|&(nr, nc, _, _)| edge(r, c, nr, nc))
+    };
+    let towards = distance(&|r, c| {
+        next_to(
+            &|r, c, nr, nc| !flat[[nr, nc]] && filled[[nr, nc]] == filled[[r, c]],
+            r,
+            c,
+        )
+    });
+    let away = distance(&|r, c| next_to(&|r, c, nr, nc| filled[[nr, nc]] > filled[[r, c]], r, c));
+    let guide = guide.filter(|g| g.dim() == (rows, cols));
+    let guided = distance(&|r, c| guide.is_some_and(|g| g[[r, c]]));
     // Each flat's largest away distance and bounding box (smallest and largest row and column,
     // the smallest as a negated maximum), spread over the flat.
     let mut most = away.clone();
@@ -308,7 +320,9 @@ pub fn resolve_flats(
     let mask = Array2::from_shape_fn((rows, cols), |(r, c)| {
         if !flat[[r, c]] || towards[[r, c]] == 0 {
             0
-        } else if away[[r, c]] > 0 && !open(r, c) {
+        } else if open(r, c) {
+            2 * towards[[r, c]] + guided[[r, c]]
+        } else if away[[r, c]] > 0 {
             2 * towards[[r, c]] + most[[r, c]] - away[[r, c]]
         } else {
             2 * towards[[r, c]]

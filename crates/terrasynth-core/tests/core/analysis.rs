@@ -150,13 +150,15 @@ proptest! {
     /// drains every cell: each chain of receivers runs without ascending to a cell without a
     /// receiver that is an outlet (on the border, NaN or next to NaN), never to a flat one.
     /// Flats wider than `max_span` (0: none resolved in full; up to the whole grid) and flats on
-    /// the border ring drain towards their low edges only, in both.
+    /// the border ring drain towards their low edges and the guide cells (none, or a random
+    /// tenth of the cells) only, in both.
     #[test]
     fn flat_resolution_equals_naive_and_drains_every_cell(
         (z, cs) in grid_strategy(),
         seed in 0u64..1000,
         holes in 0usize..3,
         max_span in prop_oneof![0usize..24, Just(usize::MAX)],
+        guided in proptest::bool::ANY,
     ) {
         let mut z = z;
         let mut lcg = Lcg(seed);
@@ -166,13 +168,17 @@ proptest! {
             let c = (lcg.next() * cols as f64) as usize;
             z[[r, c]] = f32::NAN;
         }
+        let guide = guided.then(|| z.mapv(|_| lcg.next() < 0.1));
         let filled = analysis::priority_flood_fill_flat(&z);
         let mut fast = analysis::d8_receivers(&filled, &cs);
         let mut slow = fast.clone();
-        analysis::resolve_flats(&filled, &cs, max_span, &mut fast);
-        naive::resolve_flats(&filled, &cs, max_span, &mut slow);
+        analysis::resolve_flats(&filled, &cs, max_span, guide.as_ref(), &mut fast);
+        naive::resolve_flats(&filled, &cs, max_span, guide.as_ref(), &mut slow);
         prop_assert_eq!(&fast, &slow);
-        prop_assert_eq!(&fast, &analysis::d8_receivers_over_flats(&filled, &cs, max_span));
+        prop_assert_eq!(
+            &fast,
+            &analysis::d8_receivers_over_flats(&filled, &cs, max_span, guide.as_ref())
+        );
         let (rows, cols) = z.dim();
         let outlet = |r: usize, c: usize| {
             r == 0 || c == 0 || r + 1 == rows || c + 1 == cols || filled[[r, c]].is_nan()
@@ -630,8 +636,13 @@ fn flood_extent_of_known_pit() {
 
 /// A flat valley floor 11 cells wide between walls that rise away from it, closed at its east
 /// end, its west end stepping down to the grid's border (or, with `open_west`, lying on the
-/// border ring itself), as accumulated by D8 over flats with `max_span`.
-fn flat_valley_accumulation(open_west: bool, max_span: usize) -> (Array2<f32>, Array2<f64>) {
+/// border ring itself), as accumulated by D8 over flats with `max_span` and the cells of
+/// `guide_row` as guides.
+fn flat_valley_accumulation(
+    open_west: bool,
+    max_span: usize,
+    guide_row: Option<usize>,
+) -> (Array2<f32>, Array2<f64>) {
     let (rows, cols) = (21usize, 43usize);
     let z = Array2::from_shape_fn((rows, cols), |(r, c)| {
         let off_floor = (r as f32 - 10.0).abs() - 5.0;
@@ -652,8 +663,9 @@ fn flat_valley_accumulation(open_west: bool, max_span: usize) -> (Array2<f32>, A
     // Already without depressions: the floor drains through its west end.
     let filled = analysis::priority_flood_fill_flat(&z);
     assert_eq!(filled, z, "no depression to fill");
+    let guide = guide_row.map(|g| Array2::from_shape_fn((rows, cols), |(r, _)| r == g));
     let acc = analysis::flow_accumulation_from_receivers(
-        &analysis::d8_receivers_over_flats(&filled, &cs, max_span),
+        &analysis::d8_receivers_over_flats(&filled, &cs, max_span, guide.as_ref()),
         &cs,
     );
     (z, acc)
@@ -662,10 +674,11 @@ fn flat_valley_accumulation(open_west: bool, max_span: usize) -> (Array2<f32>, A
 /// Resolved in full (inside the grid, narrower than `max_span`), the flow over the valley floor
 /// converges into its middle row, which carries nearly the whole valley to the outlet, where
 /// Priority-Flood+ε sends each row down its own parallel line. An open flat (on the border ring,
-/// or wider than `max_span`) drains towards its low edges only: parallel lines again.
+/// or wider than `max_span`) drains towards its low edges only: parallel lines again; with
+/// guide cells, it converges on them.
 #[test]
 fn flow_over_a_flat_valley_floor_converges_into_its_middle() {
-    let (z, over_flats) = flat_valley_accumulation(false, 64);
+    let (z, over_flats) = flat_valley_accumulation(false, 64, None);
     // At the floor's west end (column 2, the low edge). The floor holds 11 × 39 cells of 1 m²
     // (columns 2–40; its flat part, columns 3–40, spans 38); the closed end and the inner walls
     // drain into it too.
@@ -696,7 +709,7 @@ fn flow_over_a_flat_valley_floor_converges_into_its_middle() {
     }
     // Open flats: wider (38 columns) than a span of 37, or on the border ring.
     for (open_west, max_span, column) in [(false, 37, 2), (true, 64, 1)] {
-        let (_, open) = flat_valley_accumulation(open_west, max_span);
+        let (_, open) = flat_valley_accumulation(open_west, max_span, None);
         for r in 6..=14 {
             assert!(
                 open[[r, column]] < 100.0,
@@ -705,6 +718,19 @@ fn flow_over_a_flat_valley_floor_converges_into_its_middle() {
             );
         }
     }
+    // An open flat with guides (row 12, off the floor's middle): the flow converges on them.
+    let (_, guided) = flat_valley_accumulation(false, 37, Some(12));
+    assert!(
+        guided[[12, 2]] >= 650.0,
+        "guide row carries {}",
+        guided[[12, 2]]
+    );
+    for r in (5..=15).filter(|&r| r != 12) {
+        assert!(guided[[r, 2]] < 20.0, "row {r} carries {}", guided[[r, 2]]);
+    }
+    // A guide on a flat resolved in full changes nothing.
+    let (_, closed) = flat_valley_accumulation(false, 64, Some(12));
+    assert_eq!(closed, over_flats);
 }
 
 #[test]
