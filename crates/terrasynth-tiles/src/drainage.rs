@@ -165,9 +165,8 @@ impl DrainageLevels {
         // border lies inside the neighbour's region too, so both give it the same directions).
         let filled = analysis::priority_flood_fill_flat(&heights);
         let flat_span = usize::try_from(h).unwrap_or(0);
-        let guide = Array2::from_shape_fn(heights.dim(), |(r, c)| {
-            pa[[r / 2 + 1, c / 2 + 1]] >= FLAT_GUIDE_M2
-        });
+        // Asked of flat cells only: a region without flats costs nothing here.
+        let guide = |r: usize, c: usize| pa[[r / 2 + 1, c / 2 + 1]] >= FLAT_GUIDE_M2;
         let mut receivers =
             analysis::d8_receivers_over_flats(&filled, &cells, flat_span, Some(&guide));
         // Nothing is routed outside the base's coverage or from the sea: no sources there; flow

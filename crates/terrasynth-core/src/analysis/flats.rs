@@ -48,7 +48,7 @@ pub fn d8_receivers_over_flats(
     filled: &Array2<f32>,
     cs: &CellSizes,
     max_span: usize,
-    guide: Option<&Array2<bool>>,
+    guide: Option<&dyn Fn(usize, usize) -> bool>,
 ) -> Array2<u8> {
     let mut receivers = d8_receivers(filled, cs);
     resolve_flats(filled, cs, max_span, guide, &mut receivers);
@@ -59,12 +59,12 @@ pub fn d8_receivers_over_flats(
 /// (the D8 receivers of `filled`), pointing down the combined gradient. A flat cell that no low
 /// edge can be reached from (none, after a fill) keeps [`D8_NONE`]. Flats that touch the border
 /// ring or span more than `max_span` cells drain towards their low edges only, and towards the
-/// `guide` cells they hold (a grid of `filled`'s shape; another shape counts as none).
+/// `guide` cells they hold (`guide(row, col)`, asked of flat cells only).
 pub fn resolve_flats(
     filled: &Array2<f32>,
     cs: &CellSizes,
     max_span: usize,
-    guide: Option<&Array2<bool>>,
+    guide: Option<&dyn Fn(usize, usize) -> bool>,
     receivers: &mut Array2<u8>,
 ) {
     let (rows, cols) = filled.dim();
@@ -77,8 +77,7 @@ pub fn resolve_flats(
         return;
     }
     let geo = dir_geometry(cs, rows);
-    let guide = guide.filter(|g| g.dim() == (rows, cols)).map(values);
-    let mask = grid.mask(max_span, guide.as_deref());
+    let mask = grid.mask(max_span, guide);
     if receivers.as_slice().is_none() {
         *receivers = receivers.as_standard_layout().into_owned();
     }
@@ -179,7 +178,7 @@ impl<'a> FlatGrid<'a> {
 
     /// The combined mask of every flat cell: `2 · towards + away` (`2 · towards + guided` on
     /// open flats), 0 elsewhere and on flat cells no low edge reaches.
-    fn mask(&self, max_span: usize, guide: Option<&[bool]>) -> Vec<u32> {
+    fn mask(&self, max_span: usize, guide: Option<&dyn Fn(usize, usize) -> bool>) -> Vec<u32> {
         let (rows, cols) = (self.rows, self.cols);
         // Towards lower: from the flat cells next to an equal-valued cell that drains.
         let towards = self.distances(&self.seeds(|here, there, flat| there == here && !flat));
@@ -188,7 +187,12 @@ impl<'a> FlatGrid<'a> {
         // Towards the guide cells (0 everywhere on a flat without one).
         let guided = match guide {
             Some(g) => {
-                let seeds: Vec<usize> = self.cells.iter().copied().filter(|&i| g[i]).collect();
+                let seeds: Vec<usize> = self
+                    .cells
+                    .iter()
+                    .copied()
+                    .filter(|&i| g(i / cols, i % cols))
+                    .collect();
                 self.distances(&seeds)
             }
             None => vec![0; rows * cols],

@@ -207,7 +207,7 @@ pub fn resolve_flats(
     filled: &Array2<f32>,
     cs: &CellSizes,
     max_span: usize,
-    guide: Option<&Array2<bool>>,
+    guide: Option<&dyn Fn(usize, usize) -> bool>,
     receivers: &mut Array2<u8>,
 ) {
     let (rows, cols) = filled.dim();
@@ -277,8 +277,7 @@ pub fn resolve_flats(
         )
     });
     let away = distance(&|r, c| next_to(&|r, c, nr, nc| filled[[nr, nc]] > filled[[r, c]], r, c));
-    let guide = guide.filter(|g| g.dim() == (rows, cols));
-    let guided = distance(&|r, c| guide.is_some_and(|g| g[[r, c]]));
+    let guided = distance(&|r, c| guide.is_some_and(|g| g(r, c)));
     // Each flat's largest away distance and bounding box (smallest and largest row and column,
     // the smallest as a negated maximum), spread over the flat.
     let mut most = away.clone();

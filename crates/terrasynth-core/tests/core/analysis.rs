@@ -168,16 +168,18 @@ proptest! {
             let c = (lcg.next() * cols as f64) as usize;
             z[[r, c]] = f32::NAN;
         }
-        let guide = guided.then(|| z.mapv(|_| lcg.next() < 0.1));
+        let guide_cells = z.mapv(|_| lcg.next() < 0.1);
+        let is_guide = |r: usize, c: usize| guide_cells[[r, c]];
+        let guide = guided.then_some(&is_guide as &dyn Fn(usize, usize) -> bool);
         let filled = analysis::priority_flood_fill_flat(&z);
         let mut fast = analysis::d8_receivers(&filled, &cs);
         let mut slow = fast.clone();
-        analysis::resolve_flats(&filled, &cs, max_span, guide.as_ref(), &mut fast);
-        naive::resolve_flats(&filled, &cs, max_span, guide.as_ref(), &mut slow);
+        analysis::resolve_flats(&filled, &cs, max_span, guide, &mut fast);
+        naive::resolve_flats(&filled, &cs, max_span, guide, &mut slow);
         prop_assert_eq!(&fast, &slow);
         prop_assert_eq!(
             &fast,
-            &analysis::d8_receivers_over_flats(&filled, &cs, max_span, guide.as_ref())
+            &analysis::d8_receivers_over_flats(&filled, &cs, max_span, guide)
         );
         let (rows, cols) = z.dim();
         let outlet = |r: usize, c: usize| {
@@ -663,9 +665,10 @@ fn flat_valley_accumulation(
     // Already without depressions: the floor drains through its west end.
     let filled = analysis::priority_flood_fill_flat(&z);
     assert_eq!(filled, z, "no depression to fill");
-    let guide = guide_row.map(|g| Array2::from_shape_fn((rows, cols), |(r, _)| r == g));
+    let on_guide_row = |r: usize, _c: usize| Some(r) == guide_row;
+    let guide = guide_row.map(|_| &on_guide_row as &dyn Fn(usize, usize) -> bool);
     let acc = analysis::flow_accumulation_from_receivers(
-        &analysis::d8_receivers_over_flats(&filled, &cs, max_span, guide.as_ref()),
+        &analysis::d8_receivers_over_flats(&filled, &cs, max_span, guide),
         &cs,
     );
     (z, acc)
