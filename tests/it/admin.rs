@@ -1305,6 +1305,16 @@ async fn api_worlds_carry_title_attribution_fill_and_open_over_their_mountains()
             "water.lake_min_depth_m",
         ),
         ("water", serde_json::json!({"deep_m": -5.0}), "water.deep_m"),
+        (
+            "water",
+            serde_json::json!({"surface_lake_min_area_m2": 0.0}),
+            "water.surface_lake_min_area_m2",
+        ),
+        (
+            "water",
+            serde_json::json!({"surface_lake_bed_slope": 2.0}),
+            "water.surface_lake_bed_slope",
+        ),
         ("water", serde_json::json!({"lake": true}), "lake"),
         (
             "water",

@@ -43,6 +43,12 @@ fn lake_base() -> Array2<f32> {
 /// Whether the centre of pixel `(px, py)` of zoom `z` lies in the bowl (within its rim), by the
 /// slippy-map formulas.
 fn in_bowl(z: u8, px: i64, py: i64) -> bool {
+    within(z, px, py, RIM_R + 1.0)
+}
+
+/// Whether the centre of pixel `(px, py)` of zoom `z` lies within `radius` cells of the bowl's
+/// centre.
+fn within(z: u8, px: i64, py: i64, radius: f64) -> bool {
     let n = 256.0 * f64::from(1u32 << z);
     let lon = (px as f64 + 0.5) / n * 360.0 - 180.0;
     let lat = (std::f64::consts::PI * (1.0 - 2.0 * (py as f64 + 0.5) / n))
@@ -50,7 +56,7 @@ fn in_bowl(z: u8, px: i64, py: i64) -> bool {
         .atan()
         .to_degrees();
     let (c, r) = ((lon - 70.0) * 240.0 - 0.5, (43.0 - lat) * 240.0 - 0.5);
-    ((r - CENTRE.0).powi(2) + (c - CENTRE.1).powi(2)).sqrt() < RIM_R + 1.0
+    ((r - CENTRE.0).powi(2) + (c - CENTRE.1).powi(2)).sqrt() < radius
 }
 
 /// The mini world's place and settings (70°E 43°N, 15″, native zoom 8) with lakes on.
@@ -136,8 +142,9 @@ fn a_bowl_is_a_flat_lake_whose_bed_gets_no_detail_and_drainage_stops_at_its_shor
                     assert_eq!(sp[[r, c]], 0.0, "vegetation under water");
                 }
                 let (px, py) = (i64::from(x) * 256 + c as i64, i64::from(y) * 256 + r as i64);
-                if !in_bowl(z, px, py) {
-                    // Another depression of the synthetic terrain.
+                if !within(z, px, py, RIM_R - 1.0) {
+                    // Another depression of the synthetic terrain (one lies against the rim:
+                    // its shore may follow the amplified bed just inside it).
                     continue;
                 }
                 wet_pixels += 1;
@@ -168,6 +175,72 @@ fn a_bowl_is_a_flat_lake_whose_bed_gets_no_detail_and_drainage_stops_at_its_shor
         "detail on the flat lake bed"
     );
     assert!(flat_bed_pixels > 6000, "{flat_bed_pixels}");
+}
+
+/// The bowl's exactly flat bottom (radius 14 cells, about 90 km²) as a lake the base records as
+/// a flat surface, with depression lakes off.
+fn surface_lake_world(min_area_m2: f64) -> World {
+    lake_world_with(terrasynth_core::landscape::WaterConfig {
+        surface_lake_min_area_m2: Some(min_area_m2),
+        ..Default::default()
+    })
+}
+
+#[test]
+fn a_flat_the_base_records_is_a_lake_at_its_surface_over_a_sunk_bed() {
+    let w = surface_lake_world(1e6);
+    let mut wet_pixels = 0usize;
+    let mut grown = 0usize;
+    for z in 8..=12u8 {
+        for (x, y) in tiles(&w, z) {
+            let (depth, surface) = w.water_tile(z, x, y).unwrap();
+            let elev = w.elevation_tile(z, x, y).unwrap();
+            let area = w.drainage_tile(z, x, y).unwrap();
+            let parent = (z > 8).then(|| w.water_tile(z - 1, x / 2, y / 2).unwrap().0);
+            for ((r, c), &d) in depth.indexed_iter() {
+                if d <= 0.0 {
+                    assert!(surface[[r, c]].is_nan());
+                    continue;
+                }
+                wet_pixels += 1;
+                let (px, py) = (i64::from(x) * 256 + c as i64, i64::from(y) * 256 + r as i64);
+                assert!(
+                    in_bowl(z, px, py),
+                    "water outside the bowl at z{z} {px},{py}"
+                );
+                // The lake's level is the flat's elevation, over a bed below it.
+                assert_eq!(surface[[r, c]], BOTTOM, "z{z} {px},{py}");
+                assert_eq!(d, BOTTOM - elev[[r, c]], "depth is surface − bed");
+                assert_eq!(area[[r, c]], 0.0, "a channel under water at z{z} {r},{c}");
+                if let Some(p) = &parent {
+                    let (pr, pc) = ((py % 512) as usize / 2, (px % 512) as usize / 2);
+                    if p[[pr, pc]] <= 0.0 {
+                        grown += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(wet_pixels > 10_000, "{wet_pixels}");
+    // The shoreline follows the amplified bed beyond its dry parents in places.
+    assert!(grown > 0, "no pixel wet below a dry parent");
+    // The bed deepens away from the shore: 1 m per 100 m, so the middle (about 14 cells of
+    // 340–460 m from the shore) lies more than 40 m below the surface at the native zoom.
+    let z = 8u8;
+    let (cx, cy) = terrasynth_tiles::lonlat_to_global_pixel(
+        z,
+        70.0 + (CENTRE.1 + 0.5) / 240.0,
+        43.0 - (CENTRE.0 + 0.5) / 240.0,
+    );
+    let middle = Window::new(cx as i64, cy as i64, 1, 1);
+    let bed = w.elevation_window(z, middle).unwrap()[[0, 0]];
+    assert!(bed < BOTTOM - 40.0 && bed > BOTTOM - 80.0, "bed {bed}");
+    // A minimum above the flat's area: no lake, and the flat bottom keeps its elevation.
+    let dry = surface_lake_world(1e9);
+    assert_eq!(dry.elevation_window(z, middle).unwrap()[[0, 0]], BOTTOM);
+    for (x, y) in tiles(&dry, z) {
+        assert!(dry.water_tile(z, x, y).unwrap().0.iter().all(|&d| d == 0.0));
+    }
 }
 
 #[test]

@@ -259,8 +259,10 @@ pub struct WorldRequest {
     #[serde(default)]
     pub sea_level_m: Option<f32>,
     /// Lakes and water colours, as a world file's `[water]`: `{"lakes": bool,
-    /// "lake_min_area_m2", "lake_min_depth_m", "shallow_colour": [r, g, b], "deep_colour",
-    /// "deep_m"}` (default: no lakes; minima 1 km² and 20 m). Checked: 422 naming the field.
+    /// "lake_min_area_m2", "lake_min_depth_m", "surface_lake_min_area_m2",
+    /// "surface_lake_bed_slope", "shallow_colour": [r, g, b], "deep_colour", "deep_m"}`
+    /// (default: no lakes; minima 1 km² and 20 m; no surface lakes, bed slope 0.01). Checked:
+    /// 422 naming the field.
     #[serde(default)]
     #[schema(value_type = Option<Object>)]
     pub water: Option<WaterConfig>,

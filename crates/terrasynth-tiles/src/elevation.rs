@@ -14,7 +14,8 @@
 //! their bed elevation; where the bed is exactly flat under water (a
 //! flat lake bed), amplified levels add no detail (`calm_flat_water`). The sea and lakes of the
 //! native zoom are computed here once ([`ElevationLevels::base_water`]) since they depend only on
-//! the native-zoom elevation and coverage.
+//! the native-zoom elevation and coverage, and on the lakes the base records as flat surfaces
+//! (whose beds the world sank into the base: `crate::water::take_surface_lakes`).
 //!
 //! **Least work on a cold chain.** When none of the parent tiles a tile needs is cached or being
 //! computed (an area nobody has visited), the tile does not wait for whole parent tiles down to
@@ -67,6 +68,9 @@ pub struct ElevationLevels {
     layer_atoms: Cache<TileKey, Arc<LayerAtoms>>,
     coverage: CoverageLevels,
     water: WaterConfig,
+    /// The lakes the base records as flat surfaces: their levels on the base's grid, valid on
+    /// their cells only (`crate::water::take_surface_lakes`; the base holds their sunk beds).
+    surface_lakes: Option<Grid>,
     /// The world's class probabilities for the matching's class term.
     classes: Arc<ClassWeights>,
     base_water: OnceLock<Result<Option<Arc<BaseWater>>, TileError>>,
@@ -166,6 +170,7 @@ impl ElevationLevels {
         cache_bytes: u64,
         coverage_bytes: u64,
         water: WaterConfig,
+        surface_lakes: Option<Grid>,
         classes: Arc<ClassWeights>,
     ) -> Arc<Self> {
         let coverage = CoverageLevels::new(&base, coverage_bytes);
@@ -176,6 +181,7 @@ impl ElevationLevels {
             amplifiers,
             biomes,
             water,
+            surface_lakes,
             classes,
             base_water: OnceLock::new(),
             coverage,
@@ -269,7 +275,24 @@ impl ElevationLevels {
             .coverage_window(z, window)?
             .mapv(|c| !crate::coverage::uncovered(c));
         let cells = self.extent.cell_sizes(z, window.row0, window.rows);
-        let wet = water(&heights, &covered, &cells, &self.water);
+        let mut wet = water(&heights, &covered, &cells, &self.water);
+        if let Some(lakes) = &self.surface_lakes {
+            // A surface lake's level where a cell takes any of its value from the lake's cells
+            // and its (sunk) bed lies below that level.
+            let (surface, on_lake) =
+                mercator_window_from_valid_grid(lakes, lakes.valid.as_ref(), z, window, f32::NAN);
+            for (((level, &sea), &bed), (&s, (&on, &cover))) in wet
+                .level
+                .iter_mut()
+                .zip(&wet.sea)
+                .zip(&heights)
+                .zip(surface.iter().zip(on_lake.iter().zip(&covered)))
+            {
+                if on && cover && !sea && bed < s {
+                    *level = level.max(s);
+                }
+            }
+        }
         if wet.level.iter().all(|v| v.is_nan()) {
             return Ok(None);
         }

@@ -5,9 +5,16 @@
 //!   ([`terrasynth_core::landscape::water`](fn@terrasynth_core::landscape::water), computed once by
 //!   [`ElevationLevels::base_water`]); depth = level − bed.
 //! - **Amplified zooms**: each pixel takes the level and sea flag of its parent pixel (water
-//!   surfaces are flat: the level never gets detail) and its depth is that level minus the
-//!   amplified bed, where positive; a pixel whose bed rises above the level is dry. So the
-//!   shoreline follows the amplified bed.
+//!   surfaces are flat: the level never gets detail), or where its parent is dry the highest
+//!   level of the wet parents beside its quarter of the parent (at most three: the side and
+//!   corner neighbours it touches), and its depth is that level minus the amplified bed, where
+//!   positive; a pixel whose bed rises above the level is dry. So the shoreline follows the
+//!   amplified bed, which may carry it up to one pixel beyond its parents' at each zoom
+//!   instead of drawing the native zoom's pixel staircase.
+//!
+//! The native zoom's lakes include those the base records as flat surfaces
+//! ([`take_surface_lakes`], when the world asks for them): their beds are sunk below the
+//! surface before anything reads the base.
 //! - **Overviews** (`z < z_b`): depth is the 2×2 box average of the children (depth averages:
 //!   zoom-consistent), level and sea flag the children's maximum.
 //!
@@ -18,7 +25,9 @@ use std::sync::Arc;
 
 use ndarray::Array2;
 
-use terrasynth_core::raster::box2;
+use terrasynth_core::landscape::surface_lakes::{sink_surface_lake_beds, surface_lakes};
+use terrasynth_core::landscape::WaterConfig;
+use terrasynth_core::raster::{box2, Grid};
 use terrasynth_core::synth::Window;
 
 use crate::base_layers::cut;
@@ -147,13 +156,37 @@ impl WaterLevels {
                 cut(&base.sea, base.window, w, 0.0),
             )
         } else {
-            // Each pixel takes its parent's level and sea flag.
-            let pw = Window::new(w.col0 / 2, w.row0 / 2, w.cols / 2, w.rows / 2);
+            // Each pixel takes its parent's level and sea flag, or where its parent is dry, the
+            // highest level of the (at most three) wet parents beside its quarter of it.
+            let pw = Window::new(
+                w.col0 / 2 - 1,
+                w.row0 / 2 - 1,
+                w.cols / 2 + 2,
+                w.rows / 2 + 2,
+            );
             let parent = self.window(elevation, z - 1, pw)?;
-            let up = |a: &Array2<f32>| {
-                Array2::from_shape_fn((w.rows, w.cols), |(r, c)| a[[r / 2, c / 2]])
-            };
-            (up(&parent[LEVEL]), up(&parent[SEA]))
+            let mut level = Array2::from_elem((w.rows, w.cols), f32::NAN);
+            let mut sea = Array2::zeros((w.rows, w.cols));
+            for ((r, c), l) in level.indexed_iter_mut() {
+                let (pr, pc) = (r / 2 + 1, c / 2 + 1);
+                let (sr, sc) = ((r % 2) * 2, (c % 2) * 2);
+                let mut best = (parent[LEVEL][[pr, pc]], parent[SEA][[pr, pc]]);
+                if best.0.is_nan() {
+                    for (nr, nc) in [
+                        (pr + sr - 1, pc),
+                        (pr, pc + sc - 1),
+                        (pr + sr - 1, pc + sc - 1),
+                    ] {
+                        let nl = parent[LEVEL][[nr, nc]];
+                        if nl > best.0 || (best.0.is_nan() && !nl.is_nan()) {
+                            best = (nl, parent[SEA][[nr, nc]]);
+                        }
+                    }
+                }
+                *l = best.0;
+                sea[[r, c]] = best.1;
+            }
+            (level, sea)
         };
         let bed = elevation.tile(z, tx, ty)?;
         let coverage = elevation.coverage_tile(z, tx, ty)?;
@@ -172,6 +205,32 @@ impl WaterLevels {
         }
         Ok(vec![depth, level, sea])
     }
+}
+
+/// The lakes `base` records as flat surfaces, when `cfg` asks for them
+/// (`surface_lake_min_area_m2`): sinks their beds in `base` and returns their surfaces on the
+/// base's grid (valid on the lakes' cells only), or `None` when there are none. Found on the
+/// base's own cells, where a lake is exactly flat, before any resampling.
+pub fn take_surface_lakes(base: &mut Grid, cfg: &WaterConfig) -> Option<Grid> {
+    let min_area = cfg.surface_lake_min_area_m2?;
+    let cells = base.georef.cell_sizes(base.rows());
+    let surface = surface_lakes(
+        &base.data,
+        base.valid.as_ref(),
+        &cells,
+        min_area,
+        cfg.sea_level_m,
+    );
+    let on_lake = surface.mapv(|v| !v.is_nan());
+    if !on_lake.iter().any(|&l| l) {
+        return None;
+    }
+    sink_surface_lake_beds(&mut base.data, &surface, &cells, cfg.surface_lake_bed_slope);
+    Some(Grid {
+        data: surface,
+        georef: base.georef,
+        valid: Some(on_lake),
+    })
 }
 
 /// Zeroes `values` under water (`depth > 0`, same shape): no channel, plant or land material

@@ -342,6 +342,9 @@ impl World {
             parts.water.sea_level_m = default_sea_level(parts.base.min_max().map(|m| m.0));
         }
         parts.water.validate()?;
+        // Lakes the base records as flat surfaces get a bed below their surface, before
+        // anything reads the base's heights.
+        let surface_lakes = crate::water::take_surface_lakes(&mut parts.base, &parts.water);
         let levers = Levers {
             sparsity: parts.sparsity.unwrap_or(0),
             ..Levers::default()
@@ -450,6 +453,7 @@ impl World {
                 budget / 2 - budget / MATERIALS_SHARE,
                 budget / 64,
                 parts.water.clone(),
+                surface_lakes,
                 classes.clone(),
             ),
             whole: WholeWorld::new(landscape.clone(), classes.clone(), controls),

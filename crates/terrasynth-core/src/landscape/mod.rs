@@ -3,7 +3,8 @@
 //! the deterministic seeding simulation that makes densities patchy ([`vegetation`]), and material
 //! weights, their RGBA packing and the baked colour ([`splat`]), and instances (plants and rocks)
 //! scattered by the world's rules ([`scatter`]), and the sea and lakes of the native zoom
-//! ([`water`](mod@water)), and land-cover classes from RGB images by HSV ranges ([`classes`]).
+//! ([`water`](mod@water)) with the lakes a base records as flat surfaces ([`surface_lakes`]), and
+//! land-cover classes from RGB images by HSV ranges ([`classes`]).
 //!
 //! Everything here is a pure function of its arguments and of global pixel coordinates (noise and
 //! seeding hash the coordinates with [`crate::dictionary::hash2`]): no IO, no global state.
@@ -12,6 +13,7 @@ pub mod classes;
 pub mod model;
 pub mod scatter;
 pub mod splat;
+pub mod surface_lakes;
 pub mod vegetation;
 pub mod water;
 

@@ -35,6 +35,15 @@ pub struct WaterConfig {
     /// Smallest depth (spill level minus the lowest bed) of a depression that becomes a lake,
     /// metres.
     pub lake_min_depth_m: f32,
+    /// Smallest area (m²) of a flat of the base (connected cells of exactly one elevation) that
+    /// is a lake's surface ([`super::surface_lakes`]; `None`, the default: no such lakes). The
+    /// flat's elevation is the lake's level; its bed is sunk below it by
+    /// `surface_lake_bed_slope`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_lake_min_area_m2: Option<f64>,
+    /// Depth gained per metre of distance from the shore by the bed of a surface lake (the base
+    /// holds no bathymetry of it), m/m.
+    pub surface_lake_bed_slope: f32,
     /// Colour of shallow water `[r, g, b]` (depth 0).
     pub shallow_colour: [u8; 3],
     /// Colour of deep water `[r, g, b]` (at and below `deep_m`).
@@ -50,6 +59,8 @@ impl Default for WaterConfig {
             lakes: false,
             lake_min_area_m2: 1e6,
             lake_min_depth_m: 20.0,
+            surface_lake_min_area_m2: None,
+            surface_lake_bed_slope: 0.01,
             shallow_colour: [120, 190, 220],
             deep_colour: [20, 60, 130],
             deep_m: 50.0,
@@ -58,10 +69,11 @@ impl Default for WaterConfig {
 }
 
 impl WaterConfig {
-    /// Whether a world with these settings can have any water at all: a sea level or lakes.
+    /// Whether a world with these settings can have any water at all: a sea level, lakes or
+    /// surface lakes.
     /// A world without either is dry everywhere, so it needs no water grids or tiles.
     pub fn may_have_water(&self) -> bool {
-        self.sea_level_m.is_some() || self.lakes
+        self.sea_level_m.is_some() || self.lakes || self.surface_lake_min_area_m2.is_some()
     }
 
     /// Checks ranges.
@@ -78,6 +90,18 @@ impl WaterConfig {
         }
         if !(self.lake_min_depth_m.is_finite() && self.lake_min_depth_m > 0.0) {
             return bad("water.lake_min_depth_m must be finite and > 0");
+        }
+        if self
+            .surface_lake_min_area_m2
+            .is_some_and(|a| !(a.is_finite() && a > 0.0))
+        {
+            return bad("water.surface_lake_min_area_m2 must be finite and > 0");
+        }
+        if !(self.surface_lake_bed_slope.is_finite()
+            && self.surface_lake_bed_slope > 0.0
+            && self.surface_lake_bed_slope <= 1.0)
+        {
+            return bad("water.surface_lake_bed_slope must be finite, > 0 and ≤ 1");
         }
         if !(self.deep_m.is_finite() && self.deep_m > 0.0) {
             return bad("water.deep_m must be finite and > 0");
@@ -112,7 +136,8 @@ pub struct Water {
     pub sea: Array2<bool>,
 }
 
-const N8: [(isize, isize); 8] = [
+/// The eight neighbour offsets `(dr, dc)`, row by row.
+pub(super) const N8: [(isize, isize); 8] = [
     (-1, -1),
     (-1, 0),
     (-1, 1),
@@ -123,7 +148,8 @@ const N8: [(isize, isize); 8] = [
     (1, 1),
 ];
 
-fn neighbours(
+/// The in-grid 8-neighbours of `(r, c)` on a `rows × cols` grid, in [`N8`]'s order.
+pub(super) fn neighbours(
     r: usize,
     c: usize,
     rows: usize,

@@ -1,0 +1,348 @@
+//! Lakes that a base records as flat water surfaces. Global DEMs (GEBCO, SRTM and those built
+//! from them) hold a lake's surface, not its bed: a lake is a patch of cells of exactly one
+//! elevation. Such a patch has no depression for the depression lakes of
+//! [`water`](fn@super::water) to find, so a world would draw Issyk-Kul as bare flat ground, and
+//! every amplified zoom would add relief to it.
+//!
+//! [`surface_lakes`] finds them: 8-connected valid cells of exactly one elevation whose area
+//! reaches a minimum (a threshold well above the flats that integer elevations leave on gentle
+//! plains), above the sea level if there is one. [`sink_surface_lake_beds`] then gives each lake
+//! a bed below its surface: its depth grows with the distance to the shore
+//! ([`shore_distance`], metres along 8-neighbour steps) at a fixed slope, since the base holds no
+//! bathymetry of it. The world keeps the surface as the lake's water level.
+//!
+//! Pure functions of their inputs, with a fixed traversal order: deterministic. The distance
+//! has a relaxation twin ([`shore_distance_naive`]) for the property test.
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+
+use ndarray::Array2;
+
+use crate::raster::CellSizes;
+
+use super::water::{neighbours, N8};
+
+/// Half the side of the square a cell's neighbourhood must fill within its flat for the cell
+/// to be in the flat's core: 2, a 5×5 square.
+pub const CORE_RADIUS: usize = 2;
+
+/// The smallest share of a flat's cells in its core for the flat to be a lake. A lake's surface
+/// is a broad patch; the flats that integer elevations leave on gentle plains are contour bands
+/// a few cells wide. On the default world's 15″ GEBCO base every flat of 100 km² or more is one
+/// or the other: the lakes' core shares are 0.29–0.91, the bands' at most 0.013.
+pub const MIN_CORE_SHARE: f64 = 0.2;
+
+/// The surface of every lake of `heights` recorded as a flat: each cell of a flat of at least
+/// `min_area_m2` whose core ([`CORE_RADIUS`]) holds at least [`MIN_CORE_SHARE`] of its cells
+/// holds its elevation, every other cell NaN. A flat is a set of 8-connected valid cells
+/// (`valid`, `None`: all) of exactly one finite elevation, strictly above `sea_level` when
+/// given (a flat at or below it is sea). `cells` gives the metric cell sizes of the rows.
+pub fn surface_lakes(
+    heights: &Array2<f32>,
+    valid: Option<&Array2<bool>>,
+    cells: &CellSizes,
+    min_area_m2: f64,
+    sea_level: Option<f32>,
+) -> Array2<f32> {
+    let (rows, cols) = heights.dim();
+    let mut surface = Array2::from_elem((rows, cols), f32::NAN);
+    let usable = |r: usize, c: usize| {
+        let v = heights[[r, c]];
+        v.is_finite() && valid.is_none_or(|m| m[[r, c]]) && sea_level.is_none_or(|s| v > s)
+    };
+    // Each cell's flat, numbered from 1 in row-major order of the flats' first cells (0: none).
+    let mut label = Array2::<u32>::zeros((rows, cols));
+    let mut next = 0u32;
+    let mut flat = Vec::new();
+    let mut queue = VecDeque::new();
+    for r0 in 0..rows {
+        for c0 in 0..cols {
+            if label[[r0, c0]] != 0 || !usable(r0, c0) {
+                continue;
+            }
+            let v = heights[[r0, c0]];
+            next = next.saturating_add(1);
+            label[[r0, c0]] = next;
+            flat.clear();
+            queue.push_back((r0, c0));
+            let mut area = 0.0f64;
+            while let Some((r, c)) = queue.pop_front() {
+                flat.push((r, c));
+                area += cells.area(r);
+                for (nr, nc) in neighbours(r, c, rows, cols) {
+                    if label[[nr, nc]] == 0 && heights[[nr, nc]] == v && usable(nr, nc) {
+                        label[[nr, nc]] = next;
+                        queue.push_back((nr, nc));
+                    }
+                }
+            }
+            if area < min_area_m2 {
+                continue;
+            }
+            let k = CORE_RADIUS;
+            let in_core = |&&(r, c): &&(usize, usize)| {
+                r >= k
+                    && c >= k
+                    && r + k < rows
+                    && c + k < cols
+                    && label
+                        .slice(ndarray::s![r - k..=r + k, c - k..=c + k])
+                        .iter()
+                        .all(|&l| l == next)
+            };
+            let core = flat.iter().filter(in_core).count();
+            if core as f64 >= MIN_CORE_SHARE * flat.len() as f64 {
+                for &(r, c) in &flat {
+                    surface[[r, c]] = v;
+                }
+            }
+        }
+    }
+    surface
+}
+
+/// Lowers the cells of the lakes of `surface` (finite cells; [`surface_lakes`]) in `heights`
+/// to their surface minus `bed_slope` × their [`shore_distance`]: a bed whose depth grows from
+/// the shore. Cells off the lakes keep their value.
+pub fn sink_surface_lake_beds(
+    heights: &mut Array2<f32>,
+    surface: &Array2<f32>,
+    cells: &CellSizes,
+    bed_slope: f32,
+) {
+    let distance = shore_distance(&surface.mapv(|v| !v.is_nan()), cells);
+    ndarray::Zip::from(heights)
+        .and(surface)
+        .and(&distance)
+        .for_each(|h, &s, &d| {
+            if !s.is_nan() {
+                *h = (f64::from(s) - f64::from(bed_slope) * d) as f32;
+            }
+        });
+}
+
+/// The length of the step from `(r, c)` by `(dr, dc)`: the mean of the two rows' cell sizes
+/// along each axis moved (symmetric, so a path's length does not depend on its direction).
+fn step(cells: &CellSizes, r: usize, dr: isize, dc: isize) -> f64 {
+    let other = r
+        .saturating_add_signed(dr)
+        .min(cells.dx.len().saturating_sub(1));
+    let dx = 0.5 * (cells.dx[r] + cells.dx[other]);
+    let dy = 0.5 * (cells.dy[r] + cells.dy[other]);
+    match (dr != 0, dc != 0) {
+        (true, true) => dx.hypot(dy),
+        (true, false) => dy,
+        _ => dx,
+    }
+}
+
+/// For each cell of `inside`, the length (m) of the shortest 8-neighbour path to a cell outside
+/// it or off the grid (a step's length is the mean of its two rows' cell sizes along each axis
+/// moved, a step off the grid its own row's); 0 for cells outside. Dijkstra from the shore.
+pub fn shore_distance(inside: &Array2<bool>, cells: &CellSizes) -> Array2<f64> {
+    let (rows, cols) = inside.dim();
+    let mut dist = Array2::from_elem((rows, cols), f64::INFINITY);
+    // Entries (distance bits, row-major index): distances are ≥ 0, so their bits order them.
+    let mut heap = BinaryHeap::new();
+    for ((r, c), &is_in) in inside.indexed_iter() {
+        if !is_in {
+            dist[[r, c]] = 0.0;
+            continue;
+        }
+        let mut d = f64::INFINITY;
+        for &(dr, dc) in &N8 {
+            let off = match (r.checked_add_signed(dr), c.checked_add_signed(dc)) {
+                (Some(nr), Some(nc)) if nr < rows && nc < cols => !inside[[nr, nc]],
+                _ => true,
+            };
+            if off {
+                d = d.min(step(cells, r, dr, dc));
+            }
+        }
+        if d.is_finite() {
+            dist[[r, c]] = d;
+            heap.push(Reverse((d.to_bits(), r * cols + c)));
+        }
+    }
+    while let Some(Reverse((bits, i))) = heap.pop() {
+        let (r, c) = (i / cols, i % cols);
+        let d = f64::from_bits(bits);
+        if d > dist[[r, c]] {
+            continue;
+        }
+        for &(dr, dc) in &N8 {
+            let (Some(nr), Some(nc)) = (r.checked_add_signed(dr), c.checked_add_signed(dc)) else {
+                continue;
+            };
+            if nr >= rows || nc >= cols || !inside[[nr, nc]] {
+                continue;
+            }
+            let nd = d + step(cells, r, dr, dc);
+            if nd < dist[[nr, nc]] {
+                dist[[nr, nc]] = nd;
+                heap.push(Reverse((nd.to_bits(), nr * cols + nc)));
+            }
+        }
+    }
+    dist
+}
+
+/// [`shore_distance`] by relaxation: every cell of `inside` starts at infinity and takes the
+/// least of its neighbours' distances plus the step (a neighbour outside or off the grid counts
+/// 0) until nothing changes. The reference of the property test.
+pub fn shore_distance_naive(inside: &Array2<bool>, cells: &CellSizes) -> Array2<f64> {
+    let (rows, cols) = inside.dim();
+    let mut dist = inside.mapv(|i| if i { f64::INFINITY } else { 0.0 });
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for r in 0..rows {
+            for c in 0..cols {
+                if !inside[[r, c]] {
+                    continue;
+                }
+                for &(dr, dc) in &N8 {
+                    let from = match (r.checked_add_signed(dr), c.checked_add_signed(dc)) {
+                        (Some(nr), Some(nc)) if nr < rows && nc < cols => dist[[nr, nc]],
+                        _ => 0.0,
+                    };
+                    let d = from + step(cells, r, dr, dc);
+                    if d < dist[[r, c]] {
+                        dist[[r, c]] = d;
+                        changed = true;
+                    }
+                }
+            }
+        }
+    }
+    dist
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A 13×16 plain rising west to east by 1 m a column, holding a flat of 7×8 cells at
+    /// 500 m (12 of its cells in its core) and a band of 16 cells at 600 m along its first row;
+    /// cells of 100 m.
+    fn plain() -> Array2<f32> {
+        let mut h = Array2::from_shape_fn((13, 16), |(r, c)| 400.0 + c as f32 + 0.01 * r as f32);
+        for r in 3..10 {
+            for c in 4..12 {
+                h[[r, c]] = 500.0;
+            }
+        }
+        for c in 0..16 {
+            h[[0, c]] = 600.0;
+        }
+        h
+    }
+
+    fn on_lake(r: usize, c: usize) -> bool {
+        (3..10).contains(&r) && (4..12).contains(&c)
+    }
+
+    #[test]
+    fn a_broad_flat_is_a_lake_when_its_area_reaches_the_minimum() {
+        let h = plain();
+        let cells = CellSizes::uniform(13, 100.0);
+        // 56 cells of 1 ha: a lake at 56 ha, none at 57 ha. The band (16 ha, no core) never.
+        let s = surface_lakes(&h, None, &cells, 56e4, None);
+        for ((r, c), &v) in s.indexed_iter() {
+            assert_eq!(!v.is_nan(), on_lake(r, c), "{r},{c}");
+            if on_lake(r, c) {
+                assert_eq!(v, 500.0);
+            }
+        }
+        assert!(surface_lakes(&h, None, &cells, 57e4, None)
+            .iter()
+            .all(|v| v.is_nan()));
+        assert_eq!(
+            surface_lakes(&h, None, &cells, 1.0, None)
+                .iter()
+                .filter(|v| !v.is_nan())
+                .count(),
+            56
+        );
+        // At or below the sea level a flat is sea.
+        assert!(surface_lakes(&h, None, &cells, 1.0, Some(500.0))
+            .iter()
+            .all(|v| v.is_nan()));
+        // An invalid cell in the middle leaves the flat's other 55 cells but no core (every core
+        // cell's square holds it).
+        let mut valid = Array2::from_elem(h.dim(), true);
+        valid[[6, 8]] = false;
+        assert!(surface_lakes(&h, Some(&valid), &cells, 1.0, None)
+            .iter()
+            .all(|v| v.is_nan()));
+        // A hole in the flat's corner takes one core cell: 11 of 55, exactly the share, still a
+        // lake.
+        valid[[6, 8]] = true;
+        valid[[3, 4]] = false;
+        let holed = surface_lakes(&h, Some(&valid), &cells, 1.0, None);
+        assert!(holed[[3, 4]].is_nan());
+        assert_eq!(holed.iter().filter(|v| !v.is_nan()).count(), 55);
+    }
+
+    #[test]
+    fn a_lake_bed_deepens_with_the_distance_to_its_shore() {
+        let mut h = plain();
+        let before = h.clone();
+        let cells = CellSizes::uniform(13, 100.0);
+        let s = surface_lakes(&h, None, &cells, 1.0, None);
+        sink_surface_lake_beds(&mut h, &s, &cells, 0.05);
+        for ((r, c), &v) in h.indexed_iter() {
+            if !on_lake(r, c) {
+                assert_eq!(v, before[[r, c]], "{r},{c}");
+            }
+        }
+        // The lake's outer ring is one step (100 m) from its shore: 5 m deep; the next ring
+        // 10 m, the next 15 m, and the middle row's middle cells 20 m.
+        assert_eq!(h[[3, 4]], 495.0);
+        assert_eq!(h[[9, 11]], 495.0);
+        assert_eq!(h[[4, 5]], 490.0);
+        assert_eq!(h[[5, 6]], 485.0);
+        assert_eq!(h[[6, 7]], 480.0);
+        assert_eq!(h[[6, 8]], 480.0);
+    }
+
+    #[test]
+    fn shore_distance_counts_steps_off_the_grid_and_diagonals() {
+        let inside = Array2::from_elem((3, 5), true);
+        let cells = CellSizes::uniform(3, 10.0);
+        let d = shore_distance(&inside, &cells);
+        assert_eq!(d[[0, 0]], 10.0);
+        assert_eq!(d[[1, 2]], 20.0);
+        let mut ring = Array2::from_elem((5, 5), false);
+        ring[[2, 2]] = true;
+        ring[[2, 3]] = true;
+        let d = shore_distance(&ring, &CellSizes::uniform(5, 10.0));
+        assert_eq!((d[[2, 2]], d[[2, 3]], d[[0, 0]]), (10.0, 10.0, 0.0));
+    }
+
+    proptest! {
+        /// Dijkstra from the shore equals relaxation on random shapes with rows of different
+        /// cell sizes (to rounding: the two may sum a path's steps in another order).
+        #[test]
+        fn shore_distance_equals_its_relaxation_twin(
+            rows in 1usize..14,
+            cols in 1usize..14,
+            bits in proptest::collection::vec(0u8..4, 196),
+            dx0 in 20.0f64..200.0,
+            shrink in 0.9f64..1.0,
+        ) {
+            let inside = Array2::from_shape_fn((rows, cols), |(r, c)| bits[r * 14 + c] != 0);
+            let dx: Vec<f64> = (0..rows).map(|r| dx0 * shrink.powi(r as i32)).collect();
+            let cells = CellSizes { dx, dy: vec![1.3 * dx0; rows] };
+            let fast = shore_distance(&inside, &cells);
+            let naive = shore_distance_naive(&inside, &cells);
+            for ((r, c), &f) in fast.indexed_iter() {
+                let n = naive[[r, c]];
+                prop_assert!((f - n).abs() <= 1e-9 * n.max(1.0), "{r},{c}: {f} vs {n}");
+                prop_assert_eq!(f == 0.0, !inside[[r, c]]);
+            }
+        }
+    }
+}
