@@ -33,9 +33,13 @@ pub const CORE_RADIUS: usize = 2;
 /// or the other: the lakes' core shares are 0.29–0.91, the bands' at most 0.013.
 pub const MIN_CORE_SHARE: f64 = 0.2;
 
+/// How many steps from its flat a lake reaches over cells below its surface: 2.
+pub const SHORE_RINGS: usize = 2;
+
 /// The surface of every lake of `heights` recorded as a flat: each cell of a flat of at least
-/// `min_area_m2` whose core ([`CORE_RADIUS`]) holds at least [`MIN_CORE_SHARE`] of its cells
-/// holds its elevation, every other cell NaN. A flat is a set of 8-connected valid cells
+/// `min_area_m2` whose core ([`CORE_RADIUS`]) holds at least [`MIN_CORE_SHARE`] of its cells,
+/// and each valid cell below the flat's elevation within [`SHORE_RINGS`] steps of it through
+/// such cells, holds the flat's elevation; every other cell NaN. A flat is a set of 8-connected valid cells
 /// (`valid`, `None`: all) of exactly one finite elevation, strictly above `sea_level` when
 /// given (a flat at or below it is sea). `cells` gives the metric cell sizes of the rows.
 pub fn surface_lakes(
@@ -56,6 +60,7 @@ pub fn surface_lakes(
     let mut next = 0u32;
     let mut flat = Vec::new();
     let mut queue = VecDeque::new();
+    let mut lakes: Vec<(f32, Vec<(usize, usize)>)> = Vec::new();
     for r0 in 0..rows {
         for c0 in 0..cols {
             if label[[r0, c0]] != 0 || !usable(r0, c0) {
@@ -96,6 +101,30 @@ pub fn surface_lakes(
                 for &(r, c) in &flat {
                     surface[[r, c]] = v;
                 }
+                lakes.push((v, flat.clone()));
+            }
+        }
+    }
+    // Each lake then takes the cells below its surface within SHORE_RINGS steps of it, in the
+    // order the lakes were found (the gridding leaves such cells along many shores).
+    let mut ring = Array2::from_elem((rows, cols), u8::MAX);
+    for (v, cells_of_lake) in &lakes {
+        let mut queue: VecDeque<(usize, usize)> = cells_of_lake.iter().copied().collect();
+        for &(r, c) in cells_of_lake {
+            ring[[r, c]] = 0;
+        }
+        while let Some((r, c)) = queue.pop_front() {
+            let step = ring[[r, c]];
+            if usize::from(step) >= SHORE_RINGS {
+                continue;
+            }
+            for (nr, nc) in neighbours(r, c, rows, cols) {
+                let below = valid.is_none_or(|m| m[[nr, nc]]) && heights[[nr, nc]] < *v;
+                if surface[[nr, nc]].is_nan() && below {
+                    surface[[nr, nc]] = *v;
+                    ring[[nr, nc]] = step + 1;
+                    queue.push_back((nr, nc));
+                }
             }
         }
     }
@@ -103,8 +132,12 @@ pub fn surface_lakes(
 }
 
 /// Lowers the cells of the lakes of `surface` (finite cells; [`surface_lakes`]) in `heights`
-/// to their surface minus `bed_slope` × their [`shore_distance`]: a bed whose depth grows from
-/// the shore. Cells off the lakes keep their value.
+/// to their surface minus `bed_slope` × (their [`shore_distance`] less one cell, the smaller
+/// side of their row's cells; at least 0), where that is lower: a bed whose depth grows from
+/// the shore. The lake's
+/// outer ring keeps the surface's elevation, so amplified zooms draw its shoreline where their
+/// detail crosses the surface instead of along the base's cell edges. Cells off the lakes keep
+/// their value.
 pub fn sink_surface_lake_beds(
     heights: &mut Array2<f32>,
     surface: &Array2<f32>,
@@ -112,14 +145,13 @@ pub fn sink_surface_lake_beds(
     bed_slope: f32,
 ) {
     let distance = shore_distance(&surface.mapv(|v| !v.is_nan()), cells);
-    ndarray::Zip::from(heights)
-        .and(surface)
-        .and(&distance)
-        .for_each(|h, &s, &d| {
-            if !s.is_nan() {
-                *h = (f64::from(s) - f64::from(bed_slope) * d) as f32;
-            }
-        });
+    for ((r, c), h) in heights.indexed_iter_mut() {
+        let s = surface[[r, c]];
+        if !s.is_nan() {
+            let inland = (distance[[r, c]] - cells.dx[r].min(cells.dy[r])).max(0.0);
+            *h = h.min((f64::from(s) - f64::from(bed_slope) * inland) as f32);
+        }
+    }
 }
 
 /// The length of the step from `(r, c)` by `(dr, dc)`: the mean of the two rows' cell sizes
@@ -224,31 +256,42 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// A 13×16 plain rising west to east by 1 m a column, holding a flat of 7×8 cells at
-    /// 500 m (12 of its cells in its core) and a band of 16 cells at 600 m along its first row;
-    /// cells of 100 m.
+    /// A 13×16 plain rising west to east by 1 m a column from 600 m, holding a flat of 7×8
+    /// cells at 500 m (12 of its cells in its core), a chain of three cells below 500 m leading
+    /// west from the flat's middle row (499, 498, 497 m) and a band of 16 cells at 700 m along
+    /// its first row; cells of 100 m.
     fn plain() -> Array2<f32> {
-        let mut h = Array2::from_shape_fn((13, 16), |(r, c)| 400.0 + c as f32 + 0.01 * r as f32);
+        let mut h = Array2::from_shape_fn((13, 16), |(r, c)| 600.0 + c as f32 + 0.01 * r as f32);
         for r in 3..10 {
             for c in 4..12 {
                 h[[r, c]] = 500.0;
             }
         }
+        h[[6, 3]] = 499.0;
+        h[[6, 2]] = 498.0;
+        h[[6, 1]] = 497.0;
         for c in 0..16 {
-            h[[0, c]] = 600.0;
+            h[[0, c]] = 700.0;
         }
         h
     }
 
-    fn on_lake(r: usize, c: usize) -> bool {
+    /// The flat's cells.
+    fn on_flat(r: usize, c: usize) -> bool {
         (3..10).contains(&r) && (4..12).contains(&c)
+    }
+
+    /// The lake's cells: the flat's and the two of the chain within two steps of it.
+    fn on_lake(r: usize, c: usize) -> bool {
+        on_flat(r, c) || (r == 6 && (2..4).contains(&c))
     }
 
     #[test]
     fn a_broad_flat_is_a_lake_when_its_area_reaches_the_minimum() {
         let h = plain();
         let cells = CellSizes::uniform(13, 100.0);
-        // 56 cells of 1 ha: a lake at 56 ha, none at 57 ha. The band (16 ha, no core) never.
+        // The flat's 56 cells of 1 ha: a lake at 56 ha, none at 57 ha. The band (16 ha, no
+        // core) never. The lake reaches the chain's first two cells, not its third.
         let s = surface_lakes(&h, None, &cells, 56e4, None);
         for ((r, c), &v) in s.indexed_iter() {
             assert_eq!(!v.is_nan(), on_lake(r, c), "{r},{c}");
@@ -264,7 +307,7 @@ mod tests {
                 .iter()
                 .filter(|v| !v.is_nan())
                 .count(),
-            56
+            58
         );
         // At or below the sea level a flat is sea.
         assert!(surface_lakes(&h, None, &cells, 1.0, Some(500.0))
@@ -283,7 +326,7 @@ mod tests {
         valid[[3, 4]] = false;
         let holed = surface_lakes(&h, Some(&valid), &cells, 1.0, None);
         assert!(holed[[3, 4]].is_nan());
-        assert_eq!(holed.iter().filter(|v| !v.is_nan()).count(), 55);
+        assert_eq!(holed.iter().filter(|v| !v.is_nan()).count(), 57);
     }
 
     #[test]
@@ -294,18 +337,20 @@ mod tests {
         let s = surface_lakes(&h, None, &cells, 1.0, None);
         sink_surface_lake_beds(&mut h, &s, &cells, 0.05);
         for ((r, c), &v) in h.indexed_iter() {
-            if !on_lake(r, c) {
+            if !on_flat(r, c) {
+                // Off the lake, and on the chain's cells below the lake's outer ring: unchanged.
                 assert_eq!(v, before[[r, c]], "{r},{c}");
             }
         }
-        // The lake's outer ring is one step (100 m) from its shore: 5 m deep; the next ring
-        // 10 m, the next 15 m, and the middle row's middle cells 20 m.
-        assert_eq!(h[[3, 4]], 495.0);
-        assert_eq!(h[[9, 11]], 495.0);
-        assert_eq!(h[[4, 5]], 490.0);
-        assert_eq!(h[[5, 6]], 485.0);
-        assert_eq!(h[[6, 7]], 480.0);
-        assert_eq!(h[[6, 8]], 480.0);
+        // The lake's outer ring is one step (100 m, one cell) from its shore and keeps the
+        // surface; the next ring lies 5 m deep, the next 10 m, and the middle row's middle
+        // cells 15 m.
+        assert_eq!(h[[3, 4]], 500.0);
+        assert_eq!(h[[9, 11]], 500.0);
+        assert_eq!(h[[4, 5]], 495.0);
+        assert_eq!(h[[5, 6]], 490.0);
+        assert_eq!(h[[6, 7]], 485.0);
+        assert_eq!(h[[6, 8]], 485.0);
     }
 
     #[test]
