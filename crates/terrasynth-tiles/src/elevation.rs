@@ -146,6 +146,37 @@ pub struct BaseWater {
     pub sea: Array2<f32>,
 }
 
+impl BaseWater {
+    /// Whether any pixel of window `w` of zoom `z` may be wet, for a world whose native zoom is
+    /// `z_base`: whether the native-zoom footprint of `w`, grown by one pixel, holds a wet cell.
+    /// An amplified pixel is wet only where its parent or a parent beside it is (one pixel of
+    /// its zoom per level, less than one native pixel over every level), and an overview pixel
+    /// only where one of its children is, so `false` means the window is dry.
+    pub fn may_wet(&self, z: u8, z_base: u8, w: Window) -> bool {
+        let footprint = if z >= z_base {
+            let shift = u32::from(z - z_base);
+            let (c0, r0) = (w.col0 >> shift, w.row0 >> shift);
+            let (c1, r1) = ((w.col1() - 1) >> shift, (w.row1() - 1) >> shift);
+            Window::new(c0, r0, (c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize)
+        } else {
+            let shift = u32::from(z_base - z);
+            Window::new(
+                w.col0 << shift,
+                w.row0 << shift,
+                w.cols << shift,
+                w.rows << shift,
+            )
+        }
+        .grown(1);
+        let b = self.window;
+        let (r0, r1) = (footprint.row0.max(b.row0), footprint.row1().min(b.row1()));
+        let (c0, c1) = (footprint.col0.max(b.col0), footprint.col1().min(b.col1()));
+        (r0..r1).any(|r| {
+            (c0..c1).any(|c| !self.level[[(r - b.row0) as usize, (c - b.col0) as usize]].is_nan())
+        })
+    }
+}
+
 impl std::fmt::Debug for ElevationLevels {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ElevationLevels")
@@ -603,5 +634,42 @@ fn calm_flat_water(
         if flat {
             *v = centre;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A native zoom (8) whose only wet cell is (row 1010, column 2010) of a window from
+    /// (row 1000, column 2000).
+    fn one_wet_cell() -> BaseWater {
+        let mut level = Array2::from_elem((40, 40), f32::NAN);
+        level[[10, 10]] = 500.0;
+        BaseWater {
+            window: Window::new(2000, 1000, 40, 40),
+            level,
+            sea: Array2::zeros((40, 40)),
+        }
+    }
+
+    #[test]
+    fn a_window_may_be_wet_only_within_one_native_pixel_of_water() {
+        let bw = one_wet_cell();
+        // Native zoom: the cell itself and its neighbours' windows, not two pixels away.
+        assert!(bw.may_wet(8, 8, Window::new(2010, 1010, 1, 1)));
+        assert!(bw.may_wet(8, 8, Window::new(2011, 1011, 5, 5)));
+        assert!(!bw.may_wet(8, 8, Window::new(2012, 1010, 5, 5)));
+        // Zoom 11 (8 pixels a native pixel): a window starting on the neighbour's last column.
+        assert!(bw.may_wet(11, 8, Window::new(8 * 2011 + 7, 8 * 1010, 4, 4)));
+        assert!(!bw.may_wet(11, 8, Window::new(8 * 2012, 8 * 1010, 8, 8)));
+        // A window ending on the column before the neighbour's.
+        assert!(!bw.may_wet(11, 8, Window::new(8 * 2000, 8 * 1010, 8 * 9, 8)));
+        assert!(bw.may_wet(11, 8, Window::new(8 * 2000, 8 * 1010, 8 * 9 + 1, 8)));
+        // Zoom 6 (a pixel covers 4 × 4 native pixels): the overview pixel over the cell.
+        assert!(bw.may_wet(6, 8, Window::new(2010 / 4, 1010 / 4, 1, 1)));
+        assert!(!bw.may_wet(6, 8, Window::new(2010 / 4 + 2, 1010 / 4, 1, 1)));
+        // Outside the base water's window: dry.
+        assert!(!bw.may_wet(8, 8, Window::new(0, 0, 256, 256)));
     }
 }

@@ -88,8 +88,17 @@ impl WaterLevels {
         tx: i64,
         ty: i64,
     ) -> Result<Arc<Vec<Array2<f32>>>, TileError> {
-        if elevation.base_water()?.is_none() || elevation.extent().tile_outside(z, tx, ty) {
-            // Dry everywhere (or outside the world): the shared dry tile, no cache entry.
+        let extent = elevation.extent();
+        let dry = match elevation.base_water()? {
+            None => true,
+            Some(base) => {
+                extent.tile_outside(z, tx, ty)
+                    || !base.may_wet(z, extent.z_base, tile_window(tx, ty))
+            }
+        };
+        if dry {
+            // Dry everywhere (or outside the world, or far from any water): the shared dry
+            // tile, no cache entry.
             return Ok(self.dry.clone());
         }
         self.cache
