@@ -407,9 +407,17 @@ impl World {
             .cache_bytes
             .saturating_sub(base_bytes)
             .max(parts.cache_bytes / 4);
-        // Water tiles hold three planes: an eighth of the budget, for worlds that may have water
-        // (a dry world's water tiles are one shared dry tile, never cached).
-        let water_bytes = if wet { budget / 8 } else { 0 };
+        // Water tiles hold three planes: an eighth of the budget for worlds with a sea or
+        // depression lakes, a sixty-fourth for worlds whose only water is the base's surface
+        // lakes (tiles far from water are the shared dry tile, never cached: a few lakes need
+        // few tiles, and the drainage and vegetation caches keep the rest).
+        let water_bytes = if parts.water.sea_level_m.is_some() || parts.water.lakes {
+            budget / 8
+        } else if wet {
+            budget / 64
+        } else {
+            0
+        };
         let center = parts
             .center
             .or_else(|| relief_center(&parts.base))
