@@ -456,7 +456,11 @@ impl ElevationLevels {
                     *v = self.fill_m;
                 }
             });
-        if let Some(bw) = self.base_water()? {
+        // Only where water may lie: a world with a few lakes leaves the rest of its tiles alone.
+        let wet = self
+            .base_water()?
+            .filter(|bw| bw.may_wet(z, self.extent.z_base, w));
+        if let Some(bw) = wet {
             calm_flat_water(
                 &mut out,
                 w,

@@ -39,9 +39,10 @@ pub const SHORE_RINGS: usize = 2;
 /// The surface of every lake of `heights` recorded as a flat: each cell of a flat of at least
 /// `min_area_m2` whose core ([`CORE_RADIUS`]) holds at least [`MIN_CORE_SHARE`] of its cells,
 /// and each valid cell below the flat's elevation within [`SHORE_RINGS`] steps of it through
-/// such cells, holds the flat's elevation; every other cell NaN. A flat is a set of 8-connected valid cells
-/// (`valid`, `None`: all) of exactly one finite elevation, strictly above `sea_level` when
-/// given (a flat at or below it is sea). `cells` gives the metric cell sizes of the rows.
+/// such cells, holds the flat's elevation; every other cell NaN. A flat is a set of 8-connected
+/// valid cells (`valid`, `None`: all) of exactly one finite elevation, strictly above
+/// `sea_level` when given (a flat at or below it is sea). `cells` gives the metric cell sizes of
+/// the rows.
 pub fn surface_lakes(
     heights: &Array2<f32>,
     valid: Option<&Array2<bool>>,
@@ -101,7 +102,7 @@ pub fn surface_lakes(
                 for &(r, c) in &flat {
                     surface[[r, c]] = v;
                 }
-                lakes.push((v, flat.clone()));
+                lakes.push((v, std::mem::take(&mut flat)));
             }
         }
     }
@@ -134,10 +135,9 @@ pub fn surface_lakes(
 /// Lowers the cells of the lakes of `surface` (finite cells; [`surface_lakes`]) in `heights`
 /// to their surface minus `bed_slope` × (their [`shore_distance`] less one cell, the smaller
 /// side of their row's cells; at least 0), where that is lower: a bed whose depth grows from
-/// the shore. The lake's
-/// outer ring keeps the surface's elevation, so amplified zooms draw its shoreline where their
-/// detail crosses the surface instead of along the base's cell edges. Cells off the lakes keep
-/// their value.
+/// the shore. The lake's outer ring keeps the surface's elevation, so amplified zooms draw its
+/// shoreline where their detail crosses the surface instead of along the base's cell edges.
+/// Cells off the lakes keep their value.
 pub fn sink_surface_lake_beds(
     heights: &mut Array2<f32>,
     surface: &Array2<f32>,
