@@ -245,6 +245,39 @@ fn a_flat_the_base_records_is_a_lake_at_its_surface_over_a_sunk_bed() {
 }
 
 #[test]
+fn tiles_far_from_the_surface_lakes_do_not_wait_for_the_worlds_water() {
+    let w = surface_lake_world(1e6);
+    // Zoom 12 over the base's north-west corner: its cells 0–22, the lake's blocks start at
+    // cell 32 (the flat bottom spans cells 46–74). (Its elevation tile would amplify parent
+    // tiles that reach the lake: at zoom 9 one tile holds the whole base.)
+    let z = 12u8;
+    let (px, py) = terrasynth_tiles::lonlat_to_global_pixel(z, 70.001, 42.999);
+    let (x, y) = ((px / 256.0) as u32, (py / 256.0) as u32);
+    let (depth, surface) = w.water_tile(z, x, y).unwrap();
+    assert!(depth.iter().all(|&d| d == 0.0));
+    assert!(surface.iter().all(|s| s.is_nan()));
+    assert!(
+        !w.base_water_known(),
+        "a tile far from the lake computed the world's water"
+    );
+    // Over the bowl the world's water is computed, and the tile is wet.
+    let (bx, by) = terrasynth_tiles::lonlat_to_global_pixel(
+        z,
+        70.0 + (CENTRE.1 + 0.5) / 240.0,
+        43.0 - (CENTRE.0 + 0.5) / 240.0,
+    );
+    let (wet, _) = w
+        .water_tile(z, (bx / 256.0) as u32, (by / 256.0) as u32)
+        .unwrap();
+    assert!(wet.iter().any(|&d| d > 0.0));
+    assert!(w.base_water_known());
+    // Known or not, the far tile is dry.
+    let (again, level) = w.water_tile(z, x, y).unwrap();
+    assert_eq!(again, depth);
+    assert!(level.iter().all(|s| s.is_nan()));
+}
+
+#[test]
 fn the_lake_passes_its_inflow_on_at_its_outlet() {
     let w = lake_world();
     // The native zoom, routed over the whole world.

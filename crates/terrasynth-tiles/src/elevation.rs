@@ -15,7 +15,10 @@
 //! flat lake bed), amplified levels add no detail (`calm_flat_water`). The sea and lakes of the
 //! native zoom are computed here once ([`ElevationLevels::base_water`]) since they depend only on
 //! the native-zoom elevation and coverage, and on the lakes the base records as flat surfaces
-//! (whose beds the world sank into the base: `crate::water::take_surface_lakes`).
+//! (whose beds the world sank into the base: `crate::water::take_surface_lakes`). That takes the
+//! whole world's native zoom; a tile far from every surface lake of a world whose only water
+//! they are is known dry without it ([`ElevationLevels::base_water_near`]), so a fresh server's
+//! first tiles do not wait for it.
 //!
 //! **Least work on a cold chain.** When none of the parent tiles a tile needs is cached or being
 //! computed (an area nobody has visited), the tile does not wait for whole parent tiles down to
@@ -51,7 +54,7 @@ use crate::extent::Extent;
 use crate::pyramid::{
     assemble, for_each_tile_part, overview, recent_cache, tile_window, LevelCache, TileKey,
 };
-use crate::resample::mercator_window_from_valid_grid;
+use crate::resample::{mercator_footprints, mercator_window_from_valid_grid};
 
 /// The elevation levels of a world.
 pub struct ElevationLevels {
@@ -74,6 +77,8 @@ pub struct ElevationLevels {
     /// The world's class probabilities for the matching's class term.
     classes: Arc<ClassWeights>,
     base_water: OnceLock<Result<Option<Arc<BaseWater>>, TileError>>,
+    /// Where the native zoom may be wet, known without the base water.
+    water_reach: WaterReach,
     prefill: Prefill,
     /// This levels' own handle, for the background thread of [`Prefill`].
     me: Weak<ElevationLevels>,
@@ -153,27 +158,73 @@ impl BaseWater {
     /// its zoom per level, less than one native pixel over every level), and an overview pixel
     /// only where one of its children is, so `false` means the window is dry.
     pub fn may_wet(&self, z: u8, z_base: u8, w: Window) -> bool {
-        let footprint = if z >= z_base {
-            let shift = u32::from(z - z_base);
-            let (c0, r0) = (w.col0 >> shift, w.row0 >> shift);
-            let (c1, r1) = ((w.col1() - 1) >> shift, (w.row1() - 1) >> shift);
-            Window::new(c0, r0, (c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize)
-        } else {
-            let shift = u32::from(z_base - z);
-            Window::new(
-                w.col0 << shift,
-                w.row0 << shift,
-                w.cols << shift,
-                w.rows << shift,
-            )
-        }
-        .grown(1);
+        let footprint = native_footprint(z, z_base, w);
         let b = self.window;
         let (r0, r1) = (footprint.row0.max(b.row0), footprint.row1().min(b.row1()));
         let (c0, c1) = (footprint.col0.max(b.col0), footprint.col1().min(b.col1()));
         (r0..r1).any(|r| {
             (c0..c1).any(|c| !self.level[[(r - b.row0) as usize, (c - b.col0) as usize]].is_nan())
         })
+    }
+}
+
+/// The native-zoom footprint of window `w` of zoom `z` (`z_base`: the native zoom), grown by
+/// one pixel: the native pixels whose water may reach `w` ([`BaseWater::may_wet`]).
+fn native_footprint(z: u8, z_base: u8, w: Window) -> Window {
+    if z >= z_base {
+        let shift = u32::from(z - z_base);
+        let (c0, r0) = (w.col0 >> shift, w.row0 >> shift);
+        let (c1, r1) = ((w.col1() - 1) >> shift, (w.row1() - 1) >> shift);
+        Window::new(c0, r0, (c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize)
+    } else {
+        let shift = u32::from(z_base - z);
+        Window::new(
+            w.col0 << shift,
+            w.row0 << shift,
+            w.cols << shift,
+            w.rows << shift,
+        )
+    }
+    .grown(1)
+}
+
+/// Side of the blocks of base cells whose footprints bound the surface lakes in
+/// [`WaterReach::Within`]: a few hundred windows for the default world's lakes.
+const LAKE_BLOCK: usize = 32;
+
+/// Where a world's native zoom may be wet, known when the world is made, before the base water.
+#[derive(Debug)]
+enum WaterReach {
+    /// A sea level or depression lakes: anywhere, as far as anyone knows before the base water.
+    Anywhere,
+    /// Only within these windows of the native zoom's plane (none: dry everywhere): the
+    /// footprints of blocks of the base's cells that hold a surface lake's cell, the only water
+    /// of the world.
+    Within(Vec<Window>),
+}
+
+impl WaterReach {
+    fn of(water: &WaterConfig, surface_lakes: Option<&Grid>, extent: &Extent) -> WaterReach {
+        if water.sea_level_m.is_some() || water.lakes {
+            return WaterReach::Anywhere;
+        }
+        let Some(lakes) = surface_lakes else {
+            return WaterReach::Within(Vec::new());
+        };
+        let (rows, cols) = lakes.data.dim();
+        let mut blocks = Vec::new();
+        for r0 in (0..rows).step_by(LAKE_BLOCK) {
+            for c0 in (0..cols).step_by(LAKE_BLOCK) {
+                let (r1, c1) = ((r0 + LAKE_BLOCK).min(rows), (c0 + LAKE_BLOCK).min(cols));
+                let wet = (r0..r1).any(|r| (c0..c1).any(|c| lakes.is_valid(r, c)));
+                if wet {
+                    blocks.push((r0..r1, c0..c1));
+                }
+            }
+        }
+        let z = extent.z_base;
+        let footprints = mercator_footprints(lakes, z, extent.world_window(z), &blocks);
+        WaterReach::Within(footprints.into_iter().flatten().collect())
     }
 }
 
@@ -205,6 +256,7 @@ impl ElevationLevels {
         classes: Arc<ClassWeights>,
     ) -> Arc<Self> {
         let coverage = CoverageLevels::new(&base, coverage_bytes);
+        let water_reach = WaterReach::of(&water, surface_lakes.as_ref(), &extent);
         Arc::new_cyclic(|me| ElevationLevels {
             base,
             fill_m,
@@ -215,6 +267,7 @@ impl ElevationLevels {
             surface_lakes,
             classes,
             base_water: OnceLock::new(),
+            water_reach,
             coverage,
             cache: LevelCache::new("elevation", cache_bytes - cache_bytes / LAYER_ATOMS_SHARE),
             layer_atoms: recent_cache(cache_bytes / LAYER_ATOMS_SHARE, |a: &Arc<LayerAtoms>| {
@@ -277,6 +330,30 @@ impl ElevationLevels {
         self.base_water
             .get_or_init(|| uncancellable(|| self.compute_base_water()))
             .clone()
+    }
+
+    /// The base water when window `w` of zoom `z` may be wet ([`BaseWater::may_wet`]), else
+    /// `None` (dry). A window far from every surface lake of a world whose only water they are
+    /// is known dry without computing the base water, which takes the whole world's native
+    /// zoom: a fresh server's first tiles do not wait for it.
+    pub fn base_water_near(&self, z: u8, w: Window) -> Result<Option<Arc<BaseWater>>, TileError> {
+        let z_base = self.extent.z_base;
+        let reachable = match &self.water_reach {
+            WaterReach::Anywhere => true,
+            WaterReach::Within(windows) => {
+                let footprint = native_footprint(z, z_base, w);
+                windows.iter().any(|l| l.intersects(&footprint))
+            }
+        };
+        if !reachable {
+            return Ok(None);
+        }
+        Ok(self.base_water()?.filter(|bw| bw.may_wet(z, z_base, w)))
+    }
+
+    /// Whether the base water has been computed (or read back) yet.
+    pub fn base_water_known(&self) -> bool {
+        self.base_water.get().is_some()
     }
 
     /// Sets the base water to `water`, read back from a layers file written from
@@ -457,10 +534,7 @@ impl ElevationLevels {
                 }
             });
         // Only where water may lie: a world with a few lakes leaves the rest of its tiles alone.
-        let wet = self
-            .base_water()?
-            .filter(|bw| bw.may_wet(z, self.extent.z_base, w));
-        if let Some(bw) = wet {
+        if let Some(bw) = self.base_water_near(z, w)? {
             calm_flat_water(
                 &mut out,
                 w,
@@ -654,6 +728,61 @@ mod tests {
             window: Window::new(2000, 1000, 40, 40),
             level,
             sea: Array2::zeros((40, 40)),
+        }
+    }
+
+    proptest::proptest! {
+        /// Every native pixel the base water can take a surface lake's level at (one that reads
+        /// a lake cell: `compute_base_water`'s `on_lake`) lies in a window of the reach, so
+        /// tiles outside it are dry without the base water; with a sea level or depression
+        /// lakes the reach is everywhere, and without any lake nowhere.
+        #[test]
+        fn the_reach_of_surface_lakes_holds_every_pixel_that_reads_a_lake(
+            lakes in proptest::collection::vec((0usize..146, 0usize..116, 4usize..40, 4usize..40), 1..4),
+            z_base in 7u8..10,
+        ) {
+            use terrasynth_core::raster::{Crs, Georef};
+            let (rows, cols) = (150, 120);
+            let on = Array2::from_shape_fn((rows, cols), |(r, c)| {
+                lakes.iter().any(|&(r0, c0, h, w)| (r0..r0 + h).contains(&r) && (c0..c0 + w).contains(&c))
+            });
+            let georef = Georef {
+                crs: Crs::Epsg4326,
+                west: 71.0,
+                north: 42.5,
+                pixel_width: 1.0 / 240.0,
+                pixel_height: 1.0 / 240.0,
+            };
+            let grid = Grid {
+                data: on.mapv(|l| if l { 1500.0 } else { f32::NAN }),
+                georef,
+                valid: Some(on),
+            };
+            let extent = Extent::of_base(&grid, Some(z_base), 14).unwrap();
+            let surface_only = WaterConfig {
+                surface_lake_min_area_m2: Some(1e6),
+                ..Default::default()
+            };
+            let WaterReach::Within(reach) = WaterReach::of(&surface_only, Some(&grid), &extent)
+            else {
+                panic!("surface lakes alone reach anywhere");
+            };
+            let world = extent.world_window(z_base);
+            let (_, reads) =
+                mercator_window_from_valid_grid(&grid, grid.valid.as_ref(), z_base, world, f32::NAN);
+            let mut read = 0usize;
+            for ((r, c), &l) in reads.indexed_iter() {
+                if l {
+                    read += 1;
+                    let px = Window::new(world.col0 + c as i64, world.row0 + r as i64, 1, 1);
+                    proptest::prop_assert!(reach.iter().any(|w| w.contains(&px)), "{px:?}");
+                }
+            }
+            proptest::prop_assert!(read > 0);
+            let sea = WaterConfig { sea_level_m: Some(0.0), ..surface_only.clone() };
+            proptest::prop_assert!(matches!(WaterReach::of(&sea, Some(&grid), &extent), WaterReach::Anywhere));
+            let dry = WaterReach::of(&surface_only, None, &extent);
+            proptest::prop_assert!(matches!(dry, WaterReach::Within(w) if w.is_empty()));
         }
     }
 

@@ -89,13 +89,8 @@ impl WaterLevels {
         ty: i64,
     ) -> Result<Arc<Vec<Array2<f32>>>, TileError> {
         let extent = elevation.extent();
-        let dry = match elevation.base_water()? {
-            None => true,
-            Some(base) => {
-                extent.tile_outside(z, tx, ty)
-                    || !base.may_wet(z, extent.z_base, tile_window(tx, ty))
-            }
-        };
+        let dry = extent.tile_outside(z, tx, ty)
+            || elevation.base_water_near(z, tile_window(tx, ty))?.is_none();
         if dry {
             // Dry everywhere (or outside the world, or far from any water): the shared dry
             // tile, no cache entry.

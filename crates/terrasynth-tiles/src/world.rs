@@ -688,6 +688,13 @@ impl World {
         self.elevation.coverage_window(z, w)
     }
 
+    /// Whether the world has computed (or read back from the store) its native zoom's sea and
+    /// lakes, which take the whole world at the native zoom. A world whose only water is the
+    /// base's surface lakes serves tiles away from them without it.
+    pub fn base_water_known(&self) -> bool {
+        self.elevation.base_water_known()
+    }
+
     /// An arbitrary window of zoom `z`'s pixel plane, assembled from level tiles. `z` may exceed
     /// `max_zoom` by one (for 512-px tiles at the deepest zoom).
     pub fn elevation_window(&self, z: u8, w: Window) -> Result<Array2<f32>, TileError> {

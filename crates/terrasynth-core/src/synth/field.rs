@@ -81,6 +81,16 @@ impl Window {
             && other.row1() <= self.row1()
     }
 
+    /// Whether this window and `other` share a pixel.
+    pub fn intersects(&self, other: &Window) -> bool {
+        !self.is_empty()
+            && !other.is_empty()
+            && self.col0 < other.col1()
+            && other.col0 < self.col1()
+            && self.row0 < other.row1()
+            && other.row0 < self.row1()
+    }
+
     /// Number of pixels.
     pub fn len(&self) -> usize {
         self.cols * self.rows
