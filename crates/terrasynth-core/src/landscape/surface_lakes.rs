@@ -11,8 +11,9 @@
 //! ([`shore_distance`], metres along 8-neighbour steps) at a fixed slope, since the base holds no
 //! bathymetry of it. The world keeps the surface as the lake's water level.
 //!
-//! Pure functions of their inputs, with a fixed traversal order: deterministic. The distance
-//! has a relaxation twin ([`shore_distance_naive`]) for the property test.
+//! Pure functions of their inputs, with a fixed traversal order: deterministic. The search has
+//! a twin that labels every flat of the grid ([`surface_lakes_naive`]) and the distance a
+//! relaxation twin ([`shore_distance_naive`]), each for a property test.
 
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
@@ -43,7 +44,129 @@ pub const SHORE_RINGS: usize = 2;
 /// valid cells (`valid`, `None`: all) of exactly one finite elevation, strictly above
 /// `sea_level` when given (a flat at or below it is sea). `cells` gives the metric cell sizes of
 /// the rows.
+///
+/// Only a flat with a core cell can be a lake, so the flats are searched from the core cells
+/// alone (a 5×5 square of usable cells of one elevation, found with row runs first); each lake's
+/// area is summed in the order [`surface_lakes_naive`] sums it and the lakes take their shores
+/// in the order of their first cells, so the result is its twin's, bit for bit.
 pub fn surface_lakes(
+    heights: &Array2<f32>,
+    valid: Option<&Array2<bool>>,
+    cells: &CellSizes,
+    min_area_m2: f64,
+    sea_level: Option<f32>,
+) -> Array2<f32> {
+    let (rows, cols) = heights.dim();
+    let mut surface = Array2::from_elem((rows, cols), f32::NAN);
+    let usable = |r: usize, c: usize| {
+        let v = heights[[r, c]];
+        v.is_finite() && valid.is_none_or(|m| m[[r, c]]) && sea_level.is_none_or(|s| v > s)
+    };
+    let core = core_cells(heights, &usable);
+    // The flat each searched cell belongs to, numbered from 1 (0: not searched).
+    let mut label = Array2::<u32>::zeros((rows, cols));
+    let mut next = 0u32;
+    let mut queue = VecDeque::new();
+    let mut lakes: Vec<FoundLake> = Vec::new();
+    for ((r0, c0), &is_core) in core.indexed_iter() {
+        if !is_core || label[[r0, c0]] != 0 {
+            continue;
+        }
+        next = next.saturating_add(1);
+        let flat = flat_from(heights, &usable, (r0, c0), &mut label, next, &mut queue);
+        // The flat's first cell in row-major order, where its twin's search starts.
+        let Some(&first) = flat.iter().min() else {
+            continue;
+        };
+        let cores = flat.iter().filter(|&&(r, c)| core[[r, c]]).count();
+        if (cores as f64) < MIN_CORE_SHARE * flat.len() as f64 {
+            continue;
+        }
+        // Summed in the order of a search from the first cell, as the twin sums it: the
+        // flat's cells are searched again from there.
+        let ordered = if first == (r0, c0) {
+            flat
+        } else {
+            for &(r, c) in &flat {
+                label[[r, c]] = 0;
+            }
+            flat_from(heights, &usable, first, &mut label, next, &mut queue)
+        };
+        let area: f64 = ordered.iter().map(|&(r, _)| cells.area(r)).sum();
+        if area < min_area_m2 {
+            continue;
+        }
+        let v = heights[first];
+        for &(r, c) in &ordered {
+            surface[[r, c]] = v;
+        }
+        lakes.push(FoundLake {
+            first,
+            level: v,
+            cells: ordered,
+        });
+    }
+    lakes.sort_by_key(|lake| lake.first);
+    take_shores(heights, valid, &mut surface, &lakes);
+    surface
+}
+
+/// Whether each cell is in the core of its flat: its 5×5 square ([`CORE_RADIUS`]) lies in the
+/// grid and holds usable cells of its elevation only.
+fn core_cells(heights: &Array2<f32>, usable: &impl Fn(usize, usize) -> bool) -> Array2<bool> {
+    let (rows, cols) = heights.dim();
+    let k = CORE_RADIUS;
+    let mut core = Array2::from_elem((rows, cols), false);
+    if rows <= 2 * k || cols <= 2 * k {
+        return core;
+    }
+    // Whether the cells k either side of (r, c) in its row are usable and of its elevation.
+    let mut across = Array2::from_elem((rows, cols), false);
+    for r in 0..rows {
+        for c in k..cols - k {
+            let v = heights[[r, c]];
+            across[[r, c]] = (c - k..=c + k).all(|cc| heights[[r, cc]] == v && usable(r, cc));
+        }
+    }
+    for r in k..rows - k {
+        for c in k..cols - k {
+            let v = heights[[r, c]];
+            core[[r, c]] = (r - k..=r + k).all(|rr| across[[rr, c]] && heights[[rr, c]] == v);
+        }
+    }
+    core
+}
+
+/// The flat of `start` (8-connected usable cells of its elevation not yet labelled), labelled
+/// `id` in `label`, in the order of a breadth-first search from `start`.
+fn flat_from(
+    heights: &Array2<f32>,
+    usable: &impl Fn(usize, usize) -> bool,
+    start: (usize, usize),
+    label: &mut Array2<u32>,
+    id: u32,
+    queue: &mut VecDeque<(usize, usize)>,
+) -> Vec<(usize, usize)> {
+    let (rows, cols) = heights.dim();
+    let v = heights[start];
+    let mut flat = Vec::new();
+    label[start] = id;
+    queue.push_back(start);
+    while let Some((r, c)) = queue.pop_front() {
+        flat.push((r, c));
+        for (nr, nc) in neighbours(r, c, rows, cols) {
+            if label[[nr, nc]] == 0 && heights[[nr, nc]] == v && usable(nr, nc) {
+                label[[nr, nc]] = id;
+                queue.push_back((nr, nc));
+            }
+        }
+    }
+    flat
+}
+
+/// [`surface_lakes`] by labelling every flat of the grid, one breadth-first search each, and
+/// testing each flat's core cell by cell against the labels: the twin of the property test.
+pub fn surface_lakes_naive(
     heights: &Array2<f32>,
     valid: Option<&Array2<bool>>,
     cells: &CellSizes,
@@ -61,7 +184,7 @@ pub fn surface_lakes(
     let mut next = 0u32;
     let mut flat = Vec::new();
     let mut queue = VecDeque::new();
-    let mut lakes: Vec<(f32, Vec<(usize, usize)>)> = Vec::new();
+    let mut lakes: Vec<FoundLake> = Vec::new();
     for r0 in 0..rows {
         for c0 in 0..cols {
             if label[[r0, c0]] != 0 || !usable(r0, c0) {
@@ -102,16 +225,43 @@ pub fn surface_lakes(
                 for &(r, c) in &flat {
                     surface[[r, c]] = v;
                 }
-                lakes.push((v, std::mem::take(&mut flat)));
+                lakes.push(FoundLake {
+                    first: (r0, c0),
+                    level: v,
+                    cells: std::mem::take(&mut flat),
+                });
             }
         }
     }
-    // Each lake then takes the cells below its surface within SHORE_RINGS steps of it, in the
-    // order the lakes were found (the gridding leaves such cells along many shores).
+    take_shores(heights, valid, &mut surface, &lakes);
+    surface
+}
+
+/// A lake [`surface_lakes`] found.
+struct FoundLake {
+    /// Its flat's first cell in row-major order.
+    first: (usize, usize),
+    /// Its surface, metres: the flat's elevation.
+    level: f32,
+    /// Its flat's cells.
+    cells: Vec<(usize, usize)>,
+}
+
+/// Each lake of `lakes` (in order) takes the valid cells below its
+/// surface within [`SHORE_RINGS`] steps of it through such cells, in `surface`, unless an
+/// earlier lake took them (the gridding leaves such cells along many shores).
+fn take_shores(
+    heights: &Array2<f32>,
+    valid: Option<&Array2<bool>>,
+    surface: &mut Array2<f32>,
+    lakes: &[FoundLake],
+) {
+    let (rows, cols) = heights.dim();
     let mut ring = Array2::from_elem((rows, cols), u8::MAX);
-    for (v, cells_of_lake) in &lakes {
-        let mut queue: VecDeque<(usize, usize)> = cells_of_lake.iter().copied().collect();
-        for &(r, c) in cells_of_lake {
+    for lake in lakes {
+        let level = lake.level;
+        let mut queue: VecDeque<(usize, usize)> = lake.cells.iter().copied().collect();
+        for &(r, c) in &lake.cells {
             ring[[r, c]] = 0;
         }
         while let Some((r, c)) = queue.pop_front() {
@@ -120,16 +270,15 @@ pub fn surface_lakes(
                 continue;
             }
             for (nr, nc) in neighbours(r, c, rows, cols) {
-                let below = valid.is_none_or(|m| m[[nr, nc]]) && heights[[nr, nc]] < *v;
+                let below = valid.is_none_or(|m| m[[nr, nc]]) && heights[[nr, nc]] < level;
                 if surface[[nr, nc]].is_nan() && below {
-                    surface[[nr, nc]] = *v;
+                    surface[[nr, nc]] = level;
                     ring[[nr, nc]] = step + 1;
                     queue.push_back((nr, nc));
                 }
             }
         }
     }
-    surface
 }
 
 /// Lowers the cells of the lakes of `surface` (finite cells; [`surface_lakes`]) in `heights`
@@ -144,14 +293,58 @@ pub fn sink_surface_lake_beds(
     cells: &CellSizes,
     bed_slope: f32,
 ) {
-    let distance = shore_distance(&surface.mapv(|v| !v.is_nan()), cells);
-    for ((r, c), h) in heights.indexed_iter_mut() {
-        let s = surface[[r, c]];
-        if !s.is_nan() {
-            let inland = (distance[[r, c]] - cells.dx[r].min(cells.dy[r])).max(0.0);
-            *h = h.min((f64::from(s) - f64::from(bed_slope) * inland) as f32);
+    let inside = surface.mapv(|v| !v.is_nan());
+    let (rows, cols) = inside.dim();
+    // Each 8-connected patch of lake cells on its own: the distances of its cells run through
+    // its cells only, so the window of the patch grown by one cell (its shore) gives the
+    // distances of the whole grid, bit for bit, without a whole grid of them.
+    for patch in patches(&inside) {
+        let (mut r0, mut r1, mut c0, mut c1) = (rows, 0, cols, 0);
+        for &(r, c) in &patch {
+            (r0, r1, c0, c1) = (r0.min(r), r1.max(r + 1), c0.min(c), c1.max(c + 1));
+        }
+        let (r0, c0) = (r0.saturating_sub(1), c0.saturating_sub(1));
+        let (r1, c1) = ((r1 + 1).min(rows), (c1 + 1).min(cols));
+        let window = inside.slice(ndarray::s![r0..r1, c0..c1]).to_owned();
+        let window_cells = CellSizes {
+            dx: cells.dx[r0..r1].to_vec(),
+            dy: cells.dy[r0..r1].to_vec(),
+        };
+        let distance = shore_distance(&window, &window_cells);
+        for (r, c) in patch {
+            let inland = (distance[[r - r0, c - c0]] - cells.dx[r].min(cells.dy[r])).max(0.0);
+            let bed = (f64::from(surface[[r, c]]) - f64::from(bed_slope) * inland) as f32;
+            heights[[r, c]] = heights[[r, c]].min(bed);
         }
     }
+}
+
+/// The 8-connected patches of `inside`'s cells, each in the order of a breadth-first search
+/// from its first cell in row-major order.
+fn patches(inside: &Array2<bool>) -> Vec<Vec<(usize, usize)>> {
+    let (rows, cols) = inside.dim();
+    let mut seen = Array2::from_elem((rows, cols), false);
+    let mut out = Vec::new();
+    let mut queue = VecDeque::new();
+    for ((r0, c0), &is_in) in inside.indexed_iter() {
+        if !is_in || seen[[r0, c0]] {
+            continue;
+        }
+        seen[[r0, c0]] = true;
+        queue.push_back((r0, c0));
+        let mut patch = Vec::new();
+        while let Some((r, c)) = queue.pop_front() {
+            patch.push((r, c));
+            for (nr, nc) in neighbours(r, c, rows, cols) {
+                if inside[[nr, nc]] && !seen[[nr, nc]] {
+                    seen[[nr, nc]] = true;
+                    queue.push_back((nr, nc));
+                }
+            }
+        }
+        out.push(patch);
+    }
+    out
 }
 
 /// The length of the step from `(r, c)` by `(dr, dc)`: the mean of the two rows' cell sizes
@@ -330,6 +523,39 @@ mod tests {
     }
 
     #[test]
+    fn of_two_lakes_reaching_one_shore_cell_the_first_in_row_major_order_takes_it() {
+        // Lake X at 500 m: an 8 × 8 body in rows 6–13, columns 0–7, and a tail up column 8 from
+        // row 0, so its first cell (0, 8) comes before lake Y's although its core starts later.
+        // Lake Y at 400 m: rows 1–8, columns 11–19. Cells (3, 9) and (3, 10) lie at 300 m,
+        // below both, one and two steps from each lake.
+        let mut h = Array2::from_elem((14, 20), 600.0f32);
+        for r in 6..14 {
+            for c in 0..8 {
+                h[[r, c]] = 500.0;
+            }
+        }
+        for r in 0..7 {
+            h[[r, 8]] = 500.0;
+        }
+        for r in 1..9 {
+            for c in 11..20 {
+                h[[r, c]] = 400.0;
+            }
+        }
+        h[[3, 9]] = 300.0;
+        h[[3, 10]] = 300.0;
+        let cells = CellSizes::uniform(14, 100.0);
+        for s in [
+            surface_lakes(&h, None, &cells, 1e5, None),
+            surface_lakes_naive(&h, None, &cells, 1e5, None),
+        ] {
+            assert_eq!(s[[0, 8]], 500.0);
+            assert_eq!(s[[4, 15]], 400.0);
+            assert_eq!((s[[3, 9]], s[[3, 10]]), (500.0, 500.0));
+        }
+    }
+
+    #[test]
     fn a_lake_bed_deepens_with_the_distance_to_its_shore() {
         let mut h = plain();
         let before = h.clone();
@@ -368,6 +594,78 @@ mod tests {
     }
 
     proptest! {
+        /// The search from core cells equals labelling every flat, bit for bit, on grids of a
+        /// few elevations (broad flats, bands, ±0, NaN holes, masked cells), with or without a
+        /// sea level, for minima from none to the whole grid.
+        #[test]
+        fn surface_lakes_equal_their_twin(
+            rows in 1usize..26,
+            cols in 1usize..26,
+            picks in proptest::collection::vec(0u8..=255, 625),
+            masked in proptest::collection::vec(0u8..200, 625),
+            sea in proptest::option::of(-1.0f32..600.0),
+            min_cells in 0.0f64..120.0,
+            dx0 in 50.0f64..150.0,
+        ) {
+            // Checkerboard squares of 10 × 11 cells: broad flats (touching at their corners; some
+            // of zeros of either sign) with a few holes and other elevations in them, between
+            // squares of small flats and single cells.
+            let value = |r: usize, c: usize| match (picks[r * 25 + c], (r / 10 + c / 11) % 4) {
+                (0, _) => f32::NAN,
+                (1, _) => 499.0,
+                (2, _) => 501.0,
+                (k, 0) if r < 10 => if k % 2 == 0 { 0.0 } else { -0.0 },
+                (_, 0 | 2) => 500.0,
+                (k, _) => 600.0 + f32::from(k / 16),
+            };
+            let h = Array2::from_shape_fn((rows, cols), |(r, c)| value(r, c));
+            let valid = Array2::from_shape_fn((rows, cols), |(r, c)| masked[r * 25 + c] != 0);
+            let dx: Vec<f64> = (0..rows).map(|r| dx0 * (1.0 - 0.01 * r as f64)).collect();
+            let cells = CellSizes { dx, dy: vec![dx0; rows] };
+            let min_area = min_cells * dx0 * dx0;
+            for valid in [None, Some(&valid)] {
+                let fast = surface_lakes(&h, valid, &cells, min_area, sea);
+                let naive = surface_lakes_naive(&h, valid, &cells, min_area, sea);
+                for ((r, c), f) in fast.indexed_iter() {
+                    let n = naive[[r, c]];
+                    prop_assert_eq!(f.to_bits(), n.to_bits(), "{},{}: {} vs {}", r, c, f, n);
+                }
+            }
+        }
+
+        /// Sinking each patch of lake cells in its own window equals sinking over the whole
+        /// grid's shore distances, bit for bit.
+        #[test]
+        fn sinking_patch_by_patch_equals_the_whole_grid(
+            rows in 1usize..20,
+            cols in 1usize..20,
+            bits in proptest::collection::vec(0u8..3, 400),
+            dx0 in 20.0f64..200.0,
+            slope in 0.001f32..1.0,
+        ) {
+            let surface = Array2::from_shape_fn((rows, cols), |(r, c)| match bits[r * 20 + c] {
+                0 => f32::NAN,
+                k => 400.0 + 100.0 * f32::from(k),
+            });
+            let h = Array2::from_shape_fn((rows, cols), |(r, c)| 450.0 + (r * 7 + c * 3) as f32);
+            let dx: Vec<f64> = (0..rows).map(|r| dx0 * (1.0 - 0.02 * r as f64)).collect();
+            let dy: Vec<f64> = (0..rows).map(|r| 1.2 * dx0 * (1.0 + 0.03 * r as f64)).collect();
+            let cells = CellSizes { dx, dy };
+            let mut sunk = h.clone();
+            sink_surface_lake_beds(&mut sunk, &surface, &cells, slope);
+            let whole = shore_distance(&surface.mapv(|v| !v.is_nan()), &cells);
+            for ((r, c), &v) in sunk.indexed_iter() {
+                let s = surface[[r, c]];
+                let expected = if s.is_nan() {
+                    h[[r, c]]
+                } else {
+                    let inland = (whole[[r, c]] - cells.dx[r].min(cells.dy[r])).max(0.0);
+                    h[[r, c]].min((f64::from(s) - f64::from(slope) * inland) as f32)
+                };
+                prop_assert_eq!(v.to_bits(), expected.to_bits(), "{},{}", r, c);
+            }
+        }
+
         /// Dijkstra from the shore equals relaxation on random shapes with rows of different
         /// cell sizes (to rounding: the two may sum a path's steps in another order).
         #[test]
