@@ -189,7 +189,7 @@ fn native_footprint(z: u8, z_base: u8, w: Window) -> Window {
 }
 
 /// Side of the blocks of base cells whose footprints bound the surface lakes in
-/// [`WaterReach::Within`]: a few hundred windows for the default world's lakes.
+/// [`WaterReach::Within`]: 145 windows for the default world's lakes.
 const LAKE_BLOCK: usize = 32;
 
 /// Where a world's native zoom may be wet, known when the world is made, before the base water.
