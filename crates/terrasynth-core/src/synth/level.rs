@@ -151,14 +151,29 @@ const SLOPE_MOD_MAX: f32 = 3.0;
 /// ([`Levers::gentle_slope`]), `roughness` from twice that, linear in between; `roughness`
 /// alone when `gentle.0` is 0.
 fn gentle_blend(roughness: f32, gentle: (f32, f32), octave_slope: f32) -> f32 {
-    let (gentle_rough, gentle_slope) = gentle;
-    // A NaN slope fails `<` and takes the plain roughness.
-    let on_ramp = octave_slope < 2.0 * gentle_slope;
-    if gentle_rough <= 0.0 || gentle_slope <= 0.0 || !on_ramp {
-        return roughness;
+    ramp_below(roughness, gentle, octave_slope)
+}
+
+/// `low.0` up to the slope `low.1`, `above` from twice that, linear in between; `above` when
+/// `low.0` or `low.1` is 0 or the slope is NaN (it fails `<`).
+fn ramp_below(above: f32, low: (f32, f32), octave_slope: f32) -> f32 {
+    let (low_rough, low_slope) = low;
+    let on_ramp = octave_slope < 2.0 * low_slope;
+    if low_rough <= 0.0 || low_slope <= 0.0 || !on_ramp {
+        return above;
     }
-    let t = ((octave_slope - gentle_slope) / gentle_slope).clamp(0.0, 1.0);
-    gentle_rough + (roughness - gentle_rough) * t
+    let t = ((octave_slope - low_slope) / low_slope).clamp(0.0, 1.0);
+    low_rough + (above - low_rough) * t
+}
+
+/// [`gentle_blend`], then [`Levers::plains_roughness`] (`plains`: roughness and slope) below
+/// it by the same ramp.
+fn roughness_at(roughness: f32, gentle: (f32, f32), plains: (f32, f32), octave_slope: f32) -> f32 {
+    ramp_below(
+        gentle_blend(roughness, gentle, octave_slope),
+        plains,
+        octave_slope,
+    )
 }
 
 /// Largest detail amplitude relative to the patch's relief `P_s` under [`Levers::roughness`].
@@ -615,6 +630,7 @@ impl Amplifier {
         let pw = parent.window;
         let roughness = self.levers.roughness;
         let gentle = (self.levers.gentle_roughness, self.levers.gentle_slope);
+        let plains = (self.levers.plains_roughness, self.levers.plains_slope);
         let octave_match = self.levers.octave_match;
         let diversity = self.levers.diversity.max(1) as usize;
         let diversity_tol = self.levers.diversity_tol;
@@ -706,7 +722,7 @@ impl Amplifier {
                         let rough = if octave_match > 0.0 {
                             octave_match * self.detail_per_octave[atom]
                         } else {
-                            gentle_blend(roughness, gentle, finest / parent_cell_m)
+                            roughness_at(roughness, gentle, plains, finest / parent_cell_m)
                         };
                         let oct = rough * finest;
                         let target = (oct * oct + floor * floor).sqrt();
@@ -1545,6 +1561,29 @@ mod tests {
         assert_eq!(gentle_blend(0.58, (0.0, 0.04), 0.01), 0.58);
         assert_eq!(gentle_blend(0.58, (0.8, 0.0), 0.01), 0.58);
         assert_eq!(gentle_blend(0.58, g, f32::NAN), 0.58);
+    }
+
+    #[test]
+    fn the_flattest_octaves_take_the_plains_roughness() {
+        let (g, p) = ((0.8, 0.04), (0.3, 0.016));
+        // Up to the plains slope: the plains roughness; from twice it, the gentle one (still
+        // within the gentle slope); from twice the gentle slope, the plain one.
+        for s in [0.0, 0.01, 0.016] {
+            assert_eq!(roughness_at(0.58, g, p, s), 0.3, "{s}");
+        }
+        for s in [0.032, 0.04] {
+            assert_eq!(roughness_at(0.58, g, p, s), 0.8, "{s}");
+        }
+        assert_eq!(roughness_at(0.58, g, p, 0.2), 0.58);
+        // Halfway along the plains ramp: halfway between the plains and the gentle roughness.
+        assert!((roughness_at(0.58, g, p, 0.024) - 0.55).abs() < 1e-6);
+        // Off (0): the gentle blend alone, at every slope.
+        for s in [0.0, 0.01, 0.024, 0.06, 0.2, f32::NAN] {
+            let off = roughness_at(0.58, g, (0.0, 0.016), s);
+            assert_eq!(off.to_bits(), gentle_blend(0.58, g, s).to_bits(), "{s}");
+        }
+        // A NaN slope takes the plain roughness.
+        assert_eq!(roughness_at(0.58, g, p, f32::NAN), 0.58);
     }
 
     #[test]

@@ -43,6 +43,16 @@ pub struct Levers {
     /// The finest-octave slope (RMS per cell, m/m) up to which [`Levers::gentle_roughness`]
     /// applies fully.
     pub gentle_slope: f32,
+    /// When above 0: the roughness of primitives whose parent's finest octave is flatter still —
+    /// its slope at most [`Levers::plains_slope`] — ramping linearly to the roughness
+    /// [`Levers::gentle_roughness`] and [`Levers::roughness`] give at twice that slope. Plains
+    /// and low hills take the gentle roughness alike, and their parents do not tell them apart
+    /// (README, *Why Karatau and the steppe move together*); the flattest octaves are the
+    /// plains'. 0: off (the served amplifier; README, *Where the open issues stand*).
+    pub plains_roughness: f32,
+    /// The finest-octave slope (RMS per cell, m/m) up to which [`Levers::plains_roughness`]
+    /// applies fully.
+    pub plains_slope: f32,
     /// When above 0 (and [`Levers::roughness`] above 0), the roughness of a primitive is this
     /// factor times its matched atom's own ratio of detail RMS to finest-octave RMS (the
     /// exemplar's octave-to-detail decay where that atom was cut), instead of one ratio for every
@@ -143,6 +153,8 @@ impl Default for Levers {
             floor_m: 0.0,
             gentle_roughness: 0.8,
             gentle_slope: 0.04,
+            plains_roughness: 0.0,
+            plains_slope: 0.016,
             octave_match: 0.0,
             kernel: KernelKind::Kaiser6,
             passes: 2,
@@ -179,6 +191,8 @@ impl Levers {
             floor_m: 0.0,
             gentle_roughness: 0.0,
             gentle_slope: 0.04,
+            plains_roughness: 0.0,
+            plains_slope: 0.016,
             octave_match: 0.0,
             kernel: KernelKind::CatmullRom,
             passes: 4,
@@ -206,7 +220,8 @@ impl Levers {
     /// `volume` (breaching costs by volume; a leading `no-` turns a switch off), `power=P`, `rough=R`, `kernel=cr|k4|k6`,
     /// `passes=N`, `breach=N`, `flat=N` (reach of flat pits), `steep=S` (slope of steep
     /// pits), `floor=M`, `gentle=R` (roughness where the finest octave is gentle),
-    /// `gentleslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `dsmooth=K` (detail
+    /// `gentleslope=S` (its slope), `plains=R` (roughness where the finest octave is flatter
+    /// still), `plainsslope=S` (its slope), `octave=G`, `stripes=F|off` (stripe cap), `dsmooth=K` (detail
     /// low-pass), `sparsity=S` (0: the dictionary's), `diverse=K` (atoms a primitive chooses
     /// among), `within=T` (their score tolerance), `banks=N` (rings of banks beside breached
     /// channels), `share=F` (their share of the depth), `meank=K` (detail as the mean of the `K`
@@ -252,6 +267,8 @@ impl Levers {
                 "floor" => l.floor_m = num(0.0, 100.0)? as f32,
                 "gentle" => l.gentle_roughness = num(0.0, 4.0)? as f32,
                 "gentleslope" => l.gentle_slope = num(0.0, 10.0)? as f32,
+                "plains" => l.plains_roughness = num(0.0, 4.0)? as f32,
+                "plainsslope" => l.plains_slope = num(0.0, 10.0)? as f32,
                 "octave" => l.octave_match = num(0.0, 4.0)? as f32,
                 "power" => l.blend_power = num(1.0, 8.0)? as u32,
                 "rough" => l.roughness = num(0.0, 4.0)? as f32,
