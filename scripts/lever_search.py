@@ -2,7 +2,8 @@
 """Random search over the amplifier's levers on the held-out suite (issue #12; a measurement,
 not in CI).
 
-Draws lever sets around the served amplifier (`amplify --levers default,...`: roughness, gentle
+Draws lever sets around the one-atom amplifier served until 2026-12-07 (`amplify --levers
+single,...`, the README's figures of this search: roughness, gentle
 roughness and its slope, the steep-pit slope, the breaching reaches, diversity, blend power, and
 now and then detail smoothing, corner fill and block means), runs `scripts/realism.sh` with each
 on one held-out dictionary, and scores every bound of issue #12's acceptances 1–4 except the
@@ -97,7 +98,7 @@ def draw(rng):
         p["cornerslope"] = round(rng.uniform(0.1, 0.4), 2)
     if rng.random() < 0.4:
         p["restore"] = round(rng.uniform(0.05, 0.3), 2)
-    return "default," + ",".join(f"{k}={v}" for k, v in p.items())
+    return "single," + ",".join(f"{k}={v}" for k, v in p.items())
 
 
 def realism(bin_path, out, levers, dict_path=None):
@@ -129,8 +130,8 @@ def main():
     dict_dir = os.path.join(a.out, "dict")
     dict_path = os.path.join(dict_dir, "heldout.dict")
     if not os.path.exists(dict_path):
-        print("lever_search: building the held-out dictionary (the served amplifier's run)", file=sys.stderr)
-        realism(a.bin, dict_dir, "default")
+        print("lever_search: building the held-out dictionary (the one-atom amplifier's run)", file=sys.stderr)
+        realism(a.bin, dict_dir, "single")
     rng = random.Random(a.seed)
     results = []
     with open(os.path.join(a.out, "log.jsonl"), "a", encoding="utf-8") as log:

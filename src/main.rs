@@ -196,7 +196,7 @@ struct AmplifyCli {
     #[arg(long, hide = true, value_parser = terrasynth_core::synth::Levers::parse)]
     levers: Option<terrasynth_core::synth::Levers>,
     /// Atoms per primitive: the matcher's atom plus OMP on the rest of the parent patch
-    /// (1–8; default: the dictionary's own sparsity, 1 unless it was learned for more).
+    /// (1–8; default: the dictionary's own sparsity, at least 2; 1: one atom).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
     sparsity: Option<u32>,
 }

@@ -299,7 +299,8 @@ pub struct WorldConfig {
     /// Where map clients open, `[lon, lat]` (default: over the base's highest-relief region).
     #[serde(default)]
     pub center: Option<[f64; 2]>,
-    /// Atoms per primitive of the amplifier, 1–8 (default: the dictionary's own sparsity).
+    /// Atoms per primitive of the amplifier, 1–8 (default: the dictionary's own sparsity, at
+    /// least 2).
     #[serde(default)]
     pub sparsity: Option<u32>,
     /// Sea level, metres (default: 0 for a base with cells below 0, no sea otherwise).

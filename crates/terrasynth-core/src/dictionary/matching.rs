@@ -538,6 +538,14 @@ pub struct MatchScratch {
     seeds: Vec<usize>,
 }
 
+impl MatchScratch {
+    /// The elevation dot products of the last query [`Matcher::prepare`]d here, one per atom
+    /// (`Dᵀq` over the low atoms, in `f32`).
+    pub fn dots(&self) -> &[f32] {
+        &self.dots
+    }
+}
+
 impl Matcher {
     /// Prepares `dict` for matching with `weights`.
     pub fn new(dict: Arc<Dictionary>, weights: &MatchWeights) -> Result<Self, MatchError> {

@@ -160,10 +160,12 @@ pub struct Omp {
 #[derive(Clone, Debug, Default)]
 pub struct OmpScratch {
     dty: Vec<f64>,
-    corr: Vec<f64>,
     chol: Vec<f64>,
     rhs: Vec<f64>,
     tmp: Vec<f64>,
+    coefs: Vec<f64>,
+    support: Vec<usize>,
+    code: SparseCode,
 }
 
 impl Omp {
@@ -219,49 +221,90 @@ impl Omp {
         sparsity: usize,
         scratch: &mut OmpScratch,
     ) -> SparseCode {
-        let (n, k) = (self.n, self.k);
-        let s = sparsity.min(k);
-        let OmpScratch {
-            dty,
-            corr,
-            chol,
-            rhs,
-            tmp,
-        } = scratch;
+        let mut dty = std::mem::take(&mut scratch.dty);
         dty.clear();
-        dty.extend((0..k).map(|j| {
+        dty.extend((0..self.k).map(|j| {
             self.atom(j)
                 .iter()
                 .zip(y)
                 .map(|(&u, &v)| f64::from(u) * f64::from(v))
                 .sum::<f64>()
         }));
-        let norm_y = y[..n.min(y.len())]
-            .iter()
-            .map(|&v| f64::from(v) * f64::from(v))
-            .sum::<f64>()
-            .sqrt();
-        corr.clear();
-        corr.extend_from_slice(dty);
+        self.pursue(&dty, norm(y, self.n), first, sparsity, scratch);
+        scratch.dty = dty;
+        scratch.code.clone()
+    }
+
+    /// [`Omp::code_from`] on the correlations `dots` of `y` with every atom (`Dᵀy`, length
+    /// [`Omp::atoms`]) computed elsewhere — the amplifier's matcher has them already, in `f32`,
+    /// so the pursuit skips its `O(K·n)` product; `y` gives only `‖y‖`. The code is left in
+    /// `scratch` (no allocation per code); `dots` of another length give an empty code.
+    pub fn code_from_dots<'s>(
+        &self,
+        y: &[f32],
+        dots: &[f32],
+        first: Option<usize>,
+        sparsity: usize,
+        scratch: &'s mut OmpScratch,
+    ) -> &'s [(usize, f64)] {
+        if dots.len() == self.k {
+            self.pursue(dots, norm(y, self.n), first, sparsity, scratch);
+        } else {
+            scratch.code.clear();
+        }
+        &scratch.code
+    }
+
+    /// The pursuit on `dty = Dᵀy` (length [`Omp::atoms`]), `‖y‖` being `norm_y`, into
+    /// `scratch.code`. The correlations of the residual, `Dᵀy − G_S x_S`, are computed in the
+    /// scan that picks the next atom, never stored, and not at all after the last step.
+    fn pursue<T: Copy + Into<f64>>(
+        &self,
+        dty: &[T],
+        norm_y: f64,
+        first: Option<usize>,
+        sparsity: usize,
+        scratch: &mut OmpScratch,
+    ) {
+        let k = self.k;
+        let s = sparsity.min(k);
+        let OmpScratch {
+            chol,
+            rhs,
+            tmp,
+            coefs,
+            support,
+            code,
+            ..
+        } = scratch;
         // `chol` holds the lower-triangular factor L (row-major, s × s) of G_SS = L Lᵀ.
         chol.clear();
         chol.resize(s * s, 0.0);
-        let mut support: Vec<usize> = Vec::with_capacity(s);
-        let mut coefs: Vec<f64> = Vec::new();
+        support.clear();
+        coefs.clear();
         for step in 0..s {
-            let mut best = None;
-            let mut best_abs = 0.0f64;
-            for (j, &c) in corr.iter().enumerate() {
-                if c.abs() > best_abs && !support.contains(&j) {
-                    best_abs = c.abs();
-                    best = Some(j);
-                }
-            }
             let forced = first.filter(|&f| step == 0 && f < k);
-            let Some(j) = forced.or(best) else { break };
-            if forced.is_none() && best_abs <= TINY * norm_y.max(f64::MIN_POSITIVE) {
-                break;
-            }
+            let j = match forced {
+                Some(f) => f,
+                None => {
+                    let mut best = None;
+                    let mut best_abs = 0.0f64;
+                    for (jj, &d) in dty.iter().enumerate() {
+                        let mut c: f64 = d.into();
+                        for (&sp, &x) in support.iter().zip(coefs.iter()) {
+                            c -= self.gram[sp * k + jj] * x;
+                        }
+                        if c.abs() > best_abs && !support.contains(&jj) {
+                            best_abs = c.abs();
+                            best = Some(jj);
+                        }
+                    }
+                    match best {
+                        Some(j) if best_abs > TINY * norm_y.max(f64::MIN_POSITIVE) => j,
+                        _ => break,
+                    }
+                }
+            };
             // Extend the Cholesky factor: solve L w = G_{S,j}, then the new diagonal
             // sqrt(G_jj − w·w).
             let m = step;
@@ -286,7 +329,7 @@ impl Omp {
             let len = support.len();
             rhs.clear();
             for p in 0..len {
-                let mut v = dty[support[p]];
+                let mut v: f64 = dty[support[p]].into();
                 for q in 0..p {
                     v -= chol[p * s + q] * rhs[q];
                 }
@@ -301,16 +344,9 @@ impl Omp {
                 }
                 coefs[p] = v / chol[p * s + p];
             }
-            // Correlations of the new residual: Dᵀy − G_S x_S.
-            for (jj, c) in corr.iter_mut().enumerate() {
-                let mut v = dty[jj];
-                for (&sp, &x) in support.iter().zip(coefs.iter()) {
-                    v -= self.gram[sp * k + jj] * x;
-                }
-                *c = v;
-            }
         }
-        support.into_iter().zip(coefs.iter().copied()).collect()
+        code.clear();
+        code.extend(support.iter().copied().zip(coefs.iter().copied()));
     }
 
     /// `Σ x_j d_j` of a code, into `out` (length [`Omp::dim`]).
@@ -322,6 +358,15 @@ impl Omp {
             }
         }
     }
+}
+
+/// `‖y‖` over its first `n` values, in `f64`.
+fn norm(y: &[f32], n: usize) -> f64 {
+    y[..n.min(y.len())]
+        .iter()
+        .map(|&v| f64::from(v) * f64::from(v))
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// `‖y − Σ x_j d_j‖²` of a code, in `f64`.
@@ -442,6 +487,27 @@ mod tests {
                 prop_assert_eq!(a.0, b.0);
                 prop_assert!((a.1 - b.1).abs() <= 1e-6 * (1.0 + a.1.abs()), "{:?} vs {:?}", a, b);
             }
+            // On the correlations given in f32 (as the amplifier's matcher has them), the
+            // same support and, to the f32 rounding of `Dᵀy`, the same coefficients.
+            let dots: Vec<f32> = (0..k)
+                .map(|j| {
+                    atoms[j * n..(j + 1) * n]
+                        .iter()
+                        .zip(&y)
+                        .map(|(&a, &v)| f64::from(a) * f64::from(v))
+                        .sum::<f64>() as f32
+                })
+                .collect();
+            let mut scratch = OmpScratch::default();
+            let given = Omp::new(&atoms, n).code_from_dots(&y, &dots, Some(first), s, &mut scratch);
+            prop_assert_eq!(given.len(), naive.len());
+            for (a, b) in naive.iter().zip(given) {
+                prop_assert_eq!(a.0, b.0);
+                prop_assert!((a.1 - b.1).abs() <= 1e-4 * (1.0 + a.1.abs()), "{:?} vs {:?}", a, b);
+            }
+            prop_assert!(Omp::new(&atoms, n)
+                .code_from_dots(&y, &dots[1..], Some(first), s, &mut scratch)
+                .is_empty());
             // With one atom the coefficient is the projection on the forced atom, `⟨a, y⟩ / ⟨a, a⟩`
             // (the f32 atoms are unit-norm only to rounding).
             let one = omp_naive_from(&atoms, n, &y, Some(first), 1);

@@ -30,4 +30,4 @@ pub use gradient::GradientAmplifier;
 pub use kernel::KernelKind;
 pub use level::{Amplifier, LayerAtoms};
 pub use levers::Levers;
-pub use levers::MAX_AMPLIFY_SPARSITY;
+pub use levers::{DEFAULT_AMPLIFY_SPARSITY, MAX_AMPLIFY_SPARSITY};

@@ -552,15 +552,20 @@ fn one_level(levers: Levers, base: &Array2<f32>) -> Field {
 }
 
 #[test]
-fn sparsity_one_is_the_single_atom_amplifier_and_more_atoms_fit_the_parent_better() {
+fn sparsity_zero_takes_at_least_two_atoms_and_more_atoms_fit_the_parent_better() {
     let base = synthetic_terrain(64, 64, 21);
-    // The dictionary's own sparsity (1 for a constrained dictionary) and an explicit 1 are the
-    // same amplifier, bit for bit (the served tiles' hash list, tests/data/
-    // default_world_tiles.sha256, pins that amplifier against the one before sparse codes).
-    let own = one_level(Levers::default(), &base);
+    // Sparsity 0 takes the dictionary's own (1 for a constrained dictionary) but at least 2:
+    // the same amplifier as an explicit 2, bit for bit.
+    let own = one_level(
+        Levers {
+            sparsity: 0,
+            ..Levers::default()
+        },
+        &base,
+    );
     let explicit = one_level(
         Levers {
-            sparsity: 1,
+            sparsity: 2,
             ..Levers::default()
         },
         &base,
@@ -590,14 +595,15 @@ fn sparsity_one_is_the_single_atom_amplifier_and_more_atoms_fit_the_parent_bette
         e2 < e1 && e4 < e2,
         "parent fit: s=1 {e1}, s=2 {e2}, s=4 {e4}"
     );
-    let two = one_level(
+    // One atom is another amplifier.
+    let one = one_level(
         Levers {
-            sparsity: 2,
+            sparsity: 1,
             ..Levers::default()
         },
         &base,
     );
-    assert!(two
+    assert!(one
         .elevation
         .iter()
         .zip(own.elevation.iter())
