@@ -1,5 +1,6 @@
 //! CPU feature detection shared by the numeric kernels that have AVX2 and AVX-512 builds
-//! (matching's dot products, the gradient reconstruction). Those kernels compile the same Rust
+//! (matching's dot products and scan, the pursuit's next-atom scan, the amplifier's patch
+//! measures and blend strips, the gradient reconstruction). Those kernels compile the same Rust
 //! loops with the wider vectors enabled — the same IEEE multiplications and additions in the same
 //! order (no fused multiply-add) — so their results are bit-identical to the baseline build's;
 //! their property tests compare them with a naive reference.

@@ -12,7 +12,8 @@
 //! caller computes one cell more on every side and drops it: the result of every complete block
 //! depends on its four cells only, whatever the window.
 
-use ndarray::{Array2, ArrayView2};
+use ndarray::{Array2, ArrayView1, ArrayView2};
+use rayon::prelude::*;
 
 /// Raises the cells of `carved` (the breached surface; `raw` before breaching, same shape, cell
 /// `(0, 0)` at global `origin`) that are not below `raw`, block by block (module docs), by
@@ -25,30 +26,70 @@ pub fn restore_block_means(
     share: f32,
 ) {
     let (rows, cols) = carved.dim();
-    if raw.dim() != (rows, cols) || share == 0.0 {
+    if raw.dim() != (rows, cols) || share == 0.0 || cols == 0 {
         return;
     }
+    if carved.as_slice_mut().is_none() {
+        *carved = carved.as_standard_layout().to_owned();
+    }
+    let Some(flat) = carved.as_slice_mut() else {
+        return;
+    };
     let r_first = origin.0.rem_euclid(2) as usize;
     let c_first = origin.1.rem_euclid(2) as usize;
-    for r in (r_first..rows.saturating_sub(1)).step_by(2) {
-        for c in (c_first..cols.saturating_sub(1)).step_by(2) {
-            let cells = [(r, c), (r, c + 1), (r + 1, c), (r + 1, c + 1)];
-            let (mut carved_volume, mut kept) = (0.0f32, 0u32);
-            let lowered = cells.map(|p| raw[p] - carved[p]);
-            let channel = lowered.map(|d| d > 0.0);
-            for (&d, &is_channel) in lowered.iter().zip(&channel) {
-                if is_channel {
-                    carved_volume += d;
-                } else {
-                    kept += 1;
-                }
+    // Each pair of rows holds whole blocks and nothing else reads them: the pairs run in
+    // parallel, every block as it would alone.
+    let skip = (r_first * cols).min(flat.len());
+    flat[skip..]
+        .par_chunks_mut(2 * cols)
+        .enumerate()
+        .for_each(|(b, pair)| {
+            if pair.len() < 2 * cols {
+                return;
             }
-            if carved_volume > 0.0 && kept > 0 {
-                let raise = share * carved_volume / kept as f32;
-                for (&p, &is_channel) in cells.iter().zip(&channel) {
-                    if !is_channel {
-                        carved[p] += raise;
-                    }
+            let r = r_first + 2 * b;
+            let (top, bottom) = pair.split_at_mut(cols);
+            restore_row_pair((raw.row(r), raw.row(r + 1)), (top, bottom), c_first, share);
+        });
+}
+
+/// [`restore_block_means`] over the blocks of one pair of rows whose first block starts at
+/// column `c_first`: `raw`'s rows and `carved`'s.
+fn restore_row_pair(
+    (raw_top, raw_bottom): (ArrayView1<'_, f32>, ArrayView1<'_, f32>),
+    (top, bottom): (&mut [f32], &mut [f32]),
+    c_first: usize,
+    share: f32,
+) {
+    let cols = top.len();
+    for c in (c_first..cols.saturating_sub(1)).step_by(2) {
+        // The block's cells in row-major order.
+        let lowered = [
+            raw_top[c] - top[c],
+            raw_top[c + 1] - top[c + 1],
+            raw_bottom[c] - bottom[c],
+            raw_bottom[c + 1] - bottom[c + 1],
+        ];
+        let channel = lowered.map(|d| d > 0.0);
+        let (mut carved_volume, mut kept) = (0.0f32, 0u32);
+        for (&d, &is_channel) in lowered.iter().zip(&channel) {
+            if is_channel {
+                carved_volume += d;
+            } else {
+                kept += 1;
+            }
+        }
+        if carved_volume > 0.0 && kept > 0 {
+            let raise = share * carved_volume / kept as f32;
+            for (k, &is_channel) in channel.iter().enumerate() {
+                if !is_channel {
+                    let v = match k {
+                        0 => &mut top[c],
+                        1 => &mut top[c + 1],
+                        2 => &mut bottom[c],
+                        _ => &mut bottom[c + 1],
+                    };
+                    *v += raise;
                 }
             }
         }

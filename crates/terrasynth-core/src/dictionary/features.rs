@@ -22,6 +22,7 @@ pub const MIN_RELIEF_M: f32 = 0.5;
 ///
 /// # Panics
 /// If `side` is odd, `hi.len() != side²` or `out.len() != (side/2)²`.
+#[inline(always)]
 pub fn box_down2(hi: &[f32], side: usize, out: &mut [f32]) {
     assert!(side % 2 == 0, "box_down2: side {side} must be even");
     assert_eq!(hi.len(), side * side, "box_down2: input length");
@@ -51,6 +52,7 @@ pub fn centre_normalise(x: &[f32], out: &mut [f32]) -> (f32, f32) {
 ///
 /// # Panics
 /// If the inputs and outputs do not all have the same length.
+#[inline(always)]
 pub fn centre_normalise_n<const N: usize>(
     xs: [&[f32]; N],
     outs: [&mut [f32]; N],
@@ -114,6 +116,7 @@ pub fn patch_mean_slope(lo: &[f32], side: usize, cell_m: f32) -> f32 {
 ///
 /// # Panics
 /// If a patch's length is not `side²`.
+#[inline(always)]
 pub fn patch_mean_slope_n<const N: usize>(los: [&[f32]; N], side: usize, cell_m: f32) -> [f32; N] {
     for lo in &los {
         assert_eq!(lo.len(), side * side, "patch_mean_slope: length");

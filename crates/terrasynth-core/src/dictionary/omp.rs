@@ -18,6 +18,8 @@
 //! tests). Atoms already in the support are never chosen again; a step whose best correlation is
 //! zero (or whose atom is numerically dependent on the support) ends the pursuit early.
 
+use crate::simd::Isa;
+
 /// A sparse code: `(atom index, coefficient)` pairs in the order the atoms were chosen.
 pub type SparseCode = Vec<(usize, f64)>;
 
@@ -165,6 +167,8 @@ pub struct OmpScratch {
     tmp: Vec<f64>,
     coefs: Vec<f64>,
     support: Vec<usize>,
+    /// 0 for every atom, NaN for those of the support while a pursuit runs (see [`next_atom`]).
+    excluded: Vec<f64>,
     code: SparseCode,
 }
 
@@ -274,9 +278,14 @@ impl Omp {
             tmp,
             coefs,
             support,
+            excluded,
             code,
             ..
         } = scratch;
+        if excluded.len() != k {
+            excluded.clear();
+            excluded.resize(k, 0.0);
+        }
         // `chol` holds the lower-triangular factor L (row-major, s × s) of G_SS = L Lᵀ.
         chol.clear();
         chol.resize(s * s, 0.0);
@@ -287,18 +296,8 @@ impl Omp {
             let j = match forced {
                 Some(f) => f,
                 None => {
-                    let mut best = None;
-                    let mut best_abs = 0.0f64;
-                    for (jj, &d) in dty.iter().enumerate() {
-                        let mut c: f64 = d.into();
-                        for (&sp, &x) in support.iter().zip(coefs.iter()) {
-                            c -= self.gram[sp * k + jj] * x;
-                        }
-                        if c.abs() > best_abs && !support.contains(&jj) {
-                            best_abs = c.abs();
-                            best = Some(jj);
-                        }
-                    }
+                    let (best, best_abs) =
+                        next_atom(dty, &self.gram, k, (support, coefs), excluded);
                     match best {
                         Some(j) if best_abs > TINY * norm_y.max(f64::MIN_POSITIVE) => j,
                         _ => break,
@@ -325,6 +324,7 @@ impl Omp {
             }
             chol[m * s + m] = d2.sqrt();
             support.push(j);
+            excluded[j] = f64::NAN;
             // Solve L Lᵀ x = (Dᵀy)_S by forward and back substitution.
             let len = support.len();
             rhs.clear();
@@ -345,6 +345,9 @@ impl Omp {
                 coefs[p] = v / chol[p * s + p];
             }
         }
+        for &j in support.iter() {
+            excluded[j] = 0.0;
+        }
         code.clear();
         code.extend(support.iter().copied().zip(coefs.iter().copied()));
     }
@@ -358,6 +361,143 @@ impl Omp {
             }
         }
     }
+}
+
+/// Lanes of [`next_atom_lanes`]: eight `f64`, one AVX-512 vector.
+const SCAN_LANES: usize = 8;
+
+/// The next atom of the pursuit and its correlation's magnitude: over every atom `j` in index
+/// order, the correlation of the residual `c_j = dty_j − Σ_s G[s, j]·x_s` (the support's terms
+/// subtracted in support order), the first `j` outside the support whose `|c_j|` is strictly the
+/// largest (`None` when none is above 0). `excluded` holds 0 for every atom but NaN for those of
+/// the support. The widest build [`Isa::current`] allows of [`next_atom_lanes`], the same result
+/// as [`next_atom_scalar`].
+fn next_atom<T: Copy + Into<f64>>(
+    dty: &[T],
+    gram: &[f64],
+    k: usize,
+    (support, coefs): (&[usize], &[f64]),
+    excluded: &[f64],
+) -> (Option<usize>, f64) {
+    #[cfg(target_arch = "x86_64")]
+    match Isa::current() {
+        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
+        Isa::Avx512 => {
+            return unsafe { next_atom_avx512(dty, gram, k, (support, coefs), excluded) }
+        }
+        Isa::Avx2 => return unsafe { next_atom_avx2(dty, gram, k, (support, coefs), excluded) },
+        Isa::Baseline => {}
+    }
+    next_atom_lanes(dty, gram, k, (support, coefs), excluded)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn next_atom_avx512<T: Copy + Into<f64>>(
+    dty: &[T],
+    gram: &[f64],
+    k: usize,
+    sc: (&[usize], &[f64]),
+    excluded: &[f64],
+) -> (Option<usize>, f64) {
+    next_atom_lanes(dty, gram, k, sc, excluded)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn next_atom_avx2<T: Copy + Into<f64>>(
+    dty: &[T],
+    gram: &[f64],
+    k: usize,
+    sc: (&[usize], &[f64]),
+    excluded: &[f64],
+) -> (Option<usize>, f64) {
+    next_atom_lanes(dty, gram, k, sc, excluded)
+}
+
+/// [`next_atom`] in [`SCAN_LANES`] lanes: lane `t` keeps the largest `|c_j|` of the atoms
+/// `j ≡ t (mod SCAN_LANES)` and the first `j` that reached it (a strict comparison, as the
+/// scalar scan's); the lanes' largest value, at the lowest index among the lanes that hold it,
+/// is then the scalar scan's choice, and the atoms past the last whole group of lanes continue
+/// it one by one. Each `c_j` takes the same multiplications and subtractions as in
+/// [`next_atom_scalar`] (never fused); an excluded atom's `|c_j| + NaN` is above nothing.
+#[inline(always)]
+fn next_atom_lanes<T: Copy + Into<f64>>(
+    dty: &[T],
+    gram: &[f64],
+    k: usize,
+    (support, coefs): (&[usize], &[f64]),
+    excluded: &[f64],
+) -> (Option<usize>, f64) {
+    let n = dty.len().min(excluded.len()).min(k);
+    let whole = n - n % SCAN_LANES;
+    let mut lane_max = [0.0f64; SCAN_LANES];
+    let mut lane_at = [u64::MAX; SCAN_LANES];
+    for g in (0..whole).step_by(SCAN_LANES) {
+        let mut c = [0.0f64; SCAN_LANES];
+        for (ci, &d) in c.iter_mut().zip(&dty[g..g + SCAN_LANES]) {
+            *ci = d.into();
+        }
+        for (&sp, &x) in support.iter().zip(coefs) {
+            let row = &gram[sp * k + g..sp * k + g + SCAN_LANES];
+            for (ci, &gv) in c.iter_mut().zip(row) {
+                *ci -= gv * x;
+            }
+        }
+        let ex = &excluded[g..g + SCAN_LANES];
+        for t in 0..SCAN_LANES {
+            let a = c[t].abs() + ex[t];
+            let above = a > lane_max[t];
+            lane_max[t] = if above { a } else { lane_max[t] };
+            lane_at[t] = if above { (g + t) as u64 } else { lane_at[t] };
+        }
+    }
+    let mut best = None;
+    let mut best_abs = 0.0f64;
+    for t in 0..SCAN_LANES {
+        let at = lane_at[t] as usize;
+        if lane_at[t] != u64::MAX
+            && (lane_max[t] > best_abs || (lane_max[t] == best_abs && best.is_some_and(|b| at < b)))
+        {
+            best_abs = lane_max[t];
+            best = Some(at);
+        }
+    }
+    for j in whole..n {
+        let mut c: f64 = dty[j].into();
+        for (&sp, &x) in support.iter().zip(coefs) {
+            c -= gram[sp * k + j] * x;
+        }
+        if c.abs() > best_abs && !support.contains(&j) {
+            best_abs = c.abs();
+            best = Some(j);
+        }
+    }
+    (best, best_abs)
+}
+
+/// The reference of [`next_atom`]: one atom at a time.
+#[cfg(test)]
+fn next_atom_scalar<T: Copy + Into<f64>>(
+    dty: &[T],
+    gram: &[f64],
+    k: usize,
+    support: &[usize],
+    coefs: &[f64],
+) -> (Option<usize>, f64) {
+    let mut best = None;
+    let mut best_abs = 0.0f64;
+    for (j, &d) in dty.iter().enumerate() {
+        let mut c: f64 = d.into();
+        for (&sp, &x) in support.iter().zip(coefs) {
+            c -= gram[sp * k + j] * x;
+        }
+        if c.abs() > best_abs && !support.contains(&j) {
+            best_abs = c.abs();
+            best = Some(j);
+        }
+    }
+    (best, best_abs)
 }
 
 /// `‖y‖` over its first `n` values, in `f64`.
@@ -468,6 +608,45 @@ mod tests {
                 let e = residual_energy(&atoms, n, &y, &omp_naive(&atoms, n, &y, m));
                 prop_assert!(e <= last + 1e-9);
                 last = e;
+            }
+        }
+
+        #[test]
+        fn the_lane_scan_picks_the_scalar_scans_atom(
+            k in 1usize..70, s in 0usize..4, ties in 0usize..5, seed in any::<u64>()
+        ) {
+            // Correlations with repeated magnitudes (both signs), so that ties between lanes
+            // and within a lane are common; a Gram matrix with exact zeros, and supports of up
+            // to three atoms.
+            let mut rng = Rng::new(seed);
+            let levels: Vec<f32> = (0..=ties).map(|_| rng.normal() as f32).collect();
+            let dots: Vec<f32> = (0..k)
+                .map(|_| {
+                    let v = levels[rng.below(levels.len() as u64) as usize];
+                    if rng.next_f64() < 0.5 { -v } else { v }
+                })
+                .collect();
+            let gram: Vec<f64> = (0..k * k)
+                .map(|_| if rng.next_f64() < 0.3 { 0.0 } else { rng.normal() * 0.1 })
+                .collect();
+            let mut support: Vec<usize> = Vec::new();
+            while support.len() < s.min(k) {
+                let j = rng.below(k as u64) as usize;
+                if !support.contains(&j) {
+                    support.push(j);
+                }
+            }
+            let coefs: Vec<f64> = support.iter().map(|_| rng.normal()).collect();
+            let mut excluded = vec![0.0f64; k];
+            for &j in &support {
+                excluded[j] = f64::NAN;
+            }
+            let want = next_atom_scalar(&dots, &gram, k, &support, &coefs);
+            let plain = next_atom_lanes(&dots, &gram, k, (&support, &coefs), &excluded);
+            let widest = next_atom(&dots, &gram, k, (&support, &coefs), &excluded);
+            for got in [plain, widest] {
+                prop_assert_eq!(got.0, want.0);
+                prop_assert_eq!(got.1.to_bits(), want.1.to_bits());
             }
         }
 

@@ -136,6 +136,7 @@ pub fn upsample_patch(kernel: &UpKernel, lo_patch: &[f32], lo: usize, out: &mut 
 const MAX_TABLE_SIDE: usize = 64;
 
 /// [`upsample_patch`] with a reusable buffer for the horizontal pass.
+#[inline(always)]
 fn upsample_patch_with(
     kernel: &UpKernel,
     lo_patch: &[f32],
@@ -159,6 +160,7 @@ const SMALL_TABLE_SIDE: usize = 16;
 /// [`upsample_patch_with`] for a kernel of `N` taps per phase: the clamped tap indices and
 /// weights of every high-resolution position are tabulated once, the vertical pass runs along
 /// rows (each output still adds its taps in tap order, so the bits are those of the naive loop).
+#[inline(always)]
 fn upsample_patch_n<const N: usize, const SIDE: usize>(
     kernel: &UpKernel,
     lo_patch: &[f32],
@@ -279,6 +281,7 @@ pub fn finest_octave_rms(x: &[f32], side: usize, s: &mut OctaveScratch) -> f32 {
 
 /// [`finest_octave_rms`] of `N` patches at once, each bit for bit as alone: every patch's sum of
 /// squares runs in index order and the `N` sums interleave, so that their latencies overlap.
+#[inline(always)]
 pub fn finest_octave_rms_n<const N: usize>(
     xs: [&[f32]; N],
     side: usize,

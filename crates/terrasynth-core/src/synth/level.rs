@@ -47,6 +47,7 @@ use crate::dictionary::matching::{
 use crate::dictionary::omp::{Omp, OmpScratch};
 use crate::dictionary::{Dictionary, LayerKind};
 use crate::raster::boxfilter::box2;
+use crate::simd::Isa;
 
 /// The matched atom of one primitive.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -138,6 +139,19 @@ struct Span<'a> {
     /// First column inside the blend window.
     c0: usize,
 }
+
+/// What every strip of one [`Amplifier::blend`] reads.
+#[derive(Clone, Copy)]
+struct StripJob<'a> {
+    bw: Window,
+    lr: LatticeRange,
+    prims: &'a [Primitive],
+    what: Blended,
+    slope: Option<&'a Array2<f32>>,
+}
+
+/// A thread's value and detail sums of [`Amplifier::blend`], reused from strip to strip.
+type StripBuffers<'a> = (&'a mut [f32], &'a mut [f32]);
 
 /// Correction passes of the extra dictionary layers and of [`Amplifier::upsample_layer`]
 /// (Catmull-Rom, as before issue #12: layers are smooth and carry no grid artefacts).
@@ -689,16 +703,16 @@ impl Amplifier {
                     }
                 }
                 let patches = raws.each_ref().map(Vec::as_slice);
-                let stats = centre_normalise_n(
+                let PatchMeasures {
+                    stats,
+                    slopes,
+                    finest,
+                } = measure_patches(
                     patches,
                     queries.each_mut().map(|q| q.elevation.as_mut_slice()),
+                    (lo, parent_cell_m),
+                    (roughness > 0.0).then_some(octave),
                 );
-                let slopes = patch_mean_slope_n(patches, lo, parent_cell_m);
-                let finest = if roughness > 0.0 {
-                    finest_octave_rms_n(patches, lo, octave)
-                } else {
-                    [0.0; DOT_BATCH]
-                };
                 for ((query, &(mean, _)), &slope) in queries.iter_mut().zip(&stats).zip(&slopes) {
                     query.mean_alt = mean;
                     query.mean_slope = slope;
@@ -874,44 +888,117 @@ impl Amplifier {
                 )
             },
             |(acc_value, acc_detail), (y0, out_strip)| {
-                let rows = out_strip.len() / cols;
-                let strip = &mut acc_value[..rows * cols];
-                strip.iter_mut().for_each(|v| *v = 0.0);
-                let det_all = &mut acc_detail[..rows * cols];
-                det_all.iter_mut().for_each(|v| *v = 0.0);
-                // The two primitive rows covering the strip: c_j ∈ (y − s, y + s].
-                let j_hi = floor_div(y0 + s, s);
-                for j in [j_hi - 1, j_hi] {
-                    if j < lr.j0 || j >= lr.j1 {
-                        continue;
-                    }
-                    let oy0 = (y0 - (j * s - s)) as usize;
-                    for i in lr.i0..lr.i1 {
-                        let Some(span) = self.span(bw, lr, i, j, prims) else {
-                            continue;
-                        };
-                        for (r, (row, det)) in strip
-                            .chunks_exact_mut(cols)
-                            .zip(det_all.chunks_exact_mut(cols))
-                            .enumerate()
-                        {
-                            let srow = slope.map(|sl| sl.row(r + (y0 - bw.row0) as usize));
-                            let srow = srow.as_ref().and_then(|v| v.as_slice());
-                            self.add_span(&span, what, oy0 + r, row, det, srow);
-                        }
-                    }
-                }
-                for (r, (row, det)) in strip
-                    .chunks_exact_mut(cols)
-                    .zip(det_all.chunks_exact(cols))
-                    .enumerate()
-                {
-                    self.normalise_row(bw, y0 + r as i64, row, det);
-                }
-                out_strip.copy_from_slice(strip);
+                let job = StripJob {
+                    bw,
+                    lr,
+                    prims,
+                    what,
+                    slope,
+                };
+                self.blend_strip(&job, y0, out_strip, (acc_value, acc_detail));
             },
         );
         Array2::from_shape_vec((bw.rows, bw.cols), flat).unwrap_or_default()
+    }
+
+    /// One strip of [`Amplifier::blend`] (rows `y0..` of `job.bw`, as many as `out_strip`
+    /// holds), summed in `acc` (the thread's value and detail buffers): the widest build
+    /// [`Isa::current`] allows of [`Amplifier::blend_strip_with`], the same bits in every build
+    /// (the same multiplications and additions, never fused).
+    fn blend_strip(
+        &self,
+        job: &StripJob<'_>,
+        y0: i64,
+        out_strip: &mut [f32],
+        acc: StripBuffers<'_>,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        match Isa::current() {
+            // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
+            Isa::Avx512 => return unsafe { self.blend_strip_avx512(job, y0, out_strip, acc) },
+            Isa::Avx2 => return unsafe { self.blend_strip_avx2(job, y0, out_strip, acc) },
+            Isa::Baseline => {}
+        }
+        self.blend_strip_with(job, y0, out_strip, acc);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn blend_strip_avx512(
+        &self,
+        job: &StripJob<'_>,
+        y0: i64,
+        out: &mut [f32],
+        acc: StripBuffers<'_>,
+    ) {
+        self.blend_strip_with(job, y0, out, acc);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn blend_strip_avx2(
+        &self,
+        job: &StripJob<'_>,
+        y0: i64,
+        out: &mut [f32],
+        acc: StripBuffers<'_>,
+    ) {
+        self.blend_strip_with(job, y0, out, acc);
+    }
+
+    /// The body of [`Amplifier::blend_strip`], inlined into each build.
+    #[inline(always)]
+    fn blend_strip_with(
+        &self,
+        job: &StripJob<'_>,
+        y0: i64,
+        out_strip: &mut [f32],
+        (acc_value, acc_detail): StripBuffers<'_>,
+    ) {
+        let StripJob {
+            bw,
+            lr,
+            prims,
+            what,
+            slope,
+        } = *job;
+        let s = self.step as i64;
+        let cols = bw.cols.max(1);
+        let rows = out_strip.len() / cols;
+        let strip = &mut acc_value[..rows * cols];
+        strip.iter_mut().for_each(|v| *v = 0.0);
+        let det_all = &mut acc_detail[..rows * cols];
+        det_all.iter_mut().for_each(|v| *v = 0.0);
+        // The two primitive rows covering the strip: c_j ∈ (y − s, y + s].
+        let j_hi = floor_div(y0 + s, s);
+        for j in [j_hi - 1, j_hi] {
+            if j < lr.j0 || j >= lr.j1 {
+                continue;
+            }
+            let oy0 = (y0 - (j * s - s)) as usize;
+            for i in lr.i0..lr.i1 {
+                let Some(span) = self.span(bw, lr, i, j, prims) else {
+                    continue;
+                };
+                for (r, (row, det)) in strip
+                    .chunks_exact_mut(cols)
+                    .zip(det_all.chunks_exact_mut(cols))
+                    .enumerate()
+                {
+                    let srow = slope.map(|sl| sl.row(r + (y0 - bw.row0) as usize));
+                    let srow = srow.as_ref().and_then(|v| v.as_slice());
+                    self.add_span(&span, what, oy0 + r, row, det, srow);
+                }
+            }
+        }
+        for (r, (row, det)) in strip
+            .chunks_exact_mut(cols)
+            .zip(det_all.chunks_exact(cols))
+            .enumerate()
+        {
+            self.normalise_row(bw, y0 + r as i64, row, det);
+        }
+        out_strip.copy_from_slice(strip);
     }
 
     /// Reference implementation of [`Amplifier::blend`]: one row at a time, every primitive
@@ -1056,6 +1143,7 @@ impl Amplifier {
 
     /// Normalises row `y` of the blend: `value · (1 / Σ α) + detail · (1 / √(Σ w²))` with the
     /// tables of the pixel's offset in its lattice cell, cell by cell (no division per pixel).
+    #[inline(always)]
     fn normalise_row(&self, bw: Window, y: i64, row: &mut [f32], det: &[f32]) {
         let s = self.step as i64;
         let step = self.step;
@@ -1069,9 +1157,17 @@ impl Amplifier {
                 break;
             }
             let len = (run.end - run.start).min(row.len() - c);
-            let (n, m) = (&norm_row[run.start..], &rms_row[run.start..]);
-            for (k, (v, d)) in row[c..c + len].iter_mut().zip(&det[c..c + len]).enumerate() {
-                *v = *v * n[k] + d * m[k];
+            let (n, m) = (
+                &norm_row[run.start..run.start + len],
+                &rms_row[run.start..run.start + len],
+            );
+            for (((v, d), n), m) in row[c..c + len]
+                .iter_mut()
+                .zip(&det[c..c + len])
+                .zip(n)
+                .zip(m)
+            {
+                *v = *v * n + d * m;
             }
             c += len;
         }
@@ -1303,6 +1399,77 @@ impl Amplifier {
             layers.push((info.name.clone(), field));
         }
         layers
+    }
+}
+
+/// What [`Amplifier::match_primitives`] measures of a group's low patches before matching.
+struct PatchMeasures {
+    /// Mean and norm of each patch ([`centre_normalise_n`]).
+    stats: [(f32, f32); DOT_BATCH],
+    /// Mean slope of each patch ([`patch_mean_slope_n`]).
+    slopes: [f32; DOT_BATCH],
+    /// RMS of each patch's finest octave ([`finest_octave_rms_n`]; 0 without `octave`).
+    finest: [f32; DOT_BATCH],
+}
+
+/// The measures of a group of `side²` low `patches` (of cells `cell_m` metres), the centred,
+/// unit-norm patches written to `centred`; the finest octave only with `octave` scratch. The
+/// widest build [`Isa::current`] allows of [`measure_patches_with`]: the same bits in every build.
+fn measure_patches(
+    patches: [&[f32]; DOT_BATCH],
+    centred: [&mut [f32]; DOT_BATCH],
+    side_cell: (usize, f32),
+    octave: Option<&mut OctaveScratch>,
+) -> PatchMeasures {
+    #[cfg(target_arch = "x86_64")]
+    match Isa::current() {
+        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
+        Isa::Avx512 => {
+            return unsafe { measure_patches_avx512(patches, centred, side_cell, octave) }
+        }
+        Isa::Avx2 => return unsafe { measure_patches_avx2(patches, centred, side_cell, octave) },
+        Isa::Baseline => {}
+    }
+    measure_patches_with(patches, centred, side_cell, octave)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn measure_patches_avx512(
+    patches: [&[f32]; DOT_BATCH],
+    centred: [&mut [f32]; DOT_BATCH],
+    side_cell: (usize, f32),
+    octave: Option<&mut OctaveScratch>,
+) -> PatchMeasures {
+    measure_patches_with(patches, centred, side_cell, octave)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn measure_patches_avx2(
+    patches: [&[f32]; DOT_BATCH],
+    centred: [&mut [f32]; DOT_BATCH],
+    side_cell: (usize, f32),
+    octave: Option<&mut OctaveScratch>,
+) -> PatchMeasures {
+    measure_patches_with(patches, centred, side_cell, octave)
+}
+
+/// The body of [`measure_patches`], inlined into each build.
+#[inline(always)]
+fn measure_patches_with(
+    patches: [&[f32]; DOT_BATCH],
+    centred: [&mut [f32]; DOT_BATCH],
+    (side, cell_m): (usize, f32),
+    octave: Option<&mut OctaveScratch>,
+) -> PatchMeasures {
+    PatchMeasures {
+        stats: centre_normalise_n(patches, centred),
+        slopes: patch_mean_slope_n(patches, side, cell_m),
+        finest: match octave {
+            Some(o) => finest_octave_rms_n(patches, side, o),
+            None => [0.0; DOT_BATCH],
+        },
     }
 }
 
@@ -1677,6 +1844,7 @@ mod tests {
     }
     use crate::dictionary::build::{build, BuildOptions, Exemplar};
     use crate::dictionary::derive::derived_layers;
+    use crate::dictionary::features::{centre_normalise, patch_mean_slope};
     use crate::raster::CellSizes;
     use proptest::prelude::*;
 
@@ -1765,6 +1933,48 @@ mod tests {
                 let naive = amp.blend_rows(bw, lr, &prims, what, sl);
                 prop_assert_eq!(bits(&fast), bits(&naive), "{:?}", what);
             }
+        }
+
+        /// The patch measures of a group, in the widest build, are each patch's measures taken
+        /// alone by the plain functions, bit for bit.
+        #[test]
+        fn group_measures_equal_each_patch_measured_alone(
+            seed in 0u32..1000, side_half in 1usize..9, cell_m in 1.0f32..500.0,
+        ) {
+            let side = 2 * side_half;
+            let z = terrain(side * DOT_BATCH, side, f64::from(seed) * 0.37);
+            let flat = z.as_slice().unwrap();
+            let patches: [&[f32]; DOT_BATCH] =
+                std::array::from_fn(|m| &flat[m * side * side..(m + 1) * side * side]);
+            let mut centred: [Vec<f32>; DOT_BATCH] = std::array::from_fn(|_| vec![0.0; side * side]);
+            let mut octave = OctaveScratch::default();
+            let got = measure_patches(
+                patches,
+                centred.each_mut().map(Vec::as_mut_slice),
+                (side, cell_m),
+                Some(&mut octave),
+            );
+            for (m, patch) in patches.iter().enumerate() {
+                let mut alone = vec![0.0f32; side * side];
+                let (mean, norm) = centre_normalise(patch, &mut alone);
+                prop_assert_eq!(got.stats[m].0.to_bits(), mean.to_bits());
+                prop_assert_eq!(got.stats[m].1.to_bits(), norm.to_bits());
+                prop_assert_eq!(
+                    centred[m].iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    alone.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                );
+                let slope = patch_mean_slope(patch, side, cell_m);
+                prop_assert_eq!(got.slopes[m].to_bits(), slope.to_bits());
+                let finest = finest_octave_rms(patch, side, &mut OctaveScratch::default());
+                prop_assert_eq!(got.finest[m].to_bits(), finest.to_bits());
+            }
+            let none = measure_patches(
+                patches,
+                centred.each_mut().map(Vec::as_mut_slice),
+                (side, cell_m),
+                None,
+            );
+            prop_assert!(none.finest.iter().all(|&f| f == 0.0));
         }
 
         /// The phase-split horizontal up-sampling gives the per-column loop's bits.
