@@ -1,12 +1,13 @@
-//! CPU feature detection shared by the numeric kernels that have AVX2 and AVX-512 builds
-//! (matching's dot products and scan, the pursuit's next-atom scan, the amplifier's patch
-//! measures and blend strips, the gradient reconstruction). Those kernels compile the same Rust
-//! loops with the wider vectors enabled — the same IEEE multiplications and additions in the same
-//! order (no fused multiply-add) — so their results are bit-identical to the baseline build's;
-//! their property tests compare them with a naive reference.
+//! CPU feature detection and the one mechanism that runs a numeric kernel in AVX2 and AVX-512
+//! builds ([`Isa::run`]): matching's dot products and scan, the pursuit's next-atom scan, the
+//! amplifier's patch measures and blend strips, the gradient reconstruction, the D8 row update
+//! and [`add_scaled`]. Those kernels compile the same Rust loops with the wider vectors enabled —
+//! the same IEEE multiplications and additions in the same order (no fused multiply-add) — so
+//! their results are bit-identical to the baseline build's; their property tests compare them
+//! with a naive reference.
 
 /// The widest instruction set a kernel's build may use on this CPU.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Isa {
     /// The target's baseline (SSE2 on x86-64).
     Baseline,
@@ -42,6 +43,49 @@ impl Isa {
         static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
         *ISA.get_or_init(Isa::detect)
     }
+
+    /// Every build this CPU runs, narrowest first (for tests comparing the builds).
+    pub fn builds() -> impl Iterator<Item = Isa> {
+        [Isa::Baseline, Isa::Avx2, Isa::Avx512]
+            .into_iter()
+            .filter(|&isa| isa <= Isa::current())
+    }
+}
+
+impl Isa {
+    /// Runs `kernel` in the build of the narrower of `self` and [`Isa::current`], and tells it
+    /// which build it runs in (for kernels whose block sizes follow the registers).
+    ///
+    /// The wider builds are `kernel` inlined into a function that enables the wider vectors, so
+    /// `kernel` must be an `#[inline(always)]` closure calling `#[inline(always)]` code: what is
+    /// not inlined runs in the baseline build (the same result, only slower). Every kernel run
+    /// this way does the same IEEE operations in the same order in every build (no fused
+    /// multiply-add), so its result is bit-identical to the baseline build's.
+    #[inline(always)]
+    pub fn run<R>(self, kernel: impl FnOnce(Isa) -> R) -> R {
+        #[cfg(target_arch = "x86_64")]
+        match self.min(Isa::current()) {
+            // SAFETY: `Isa::current` is what the CPU reports, and the build never exceeds it.
+            Isa::Avx512 => return unsafe { run_avx512(kernel) },
+            Isa::Avx2 => return unsafe { run_avx2(kernel) },
+            Isa::Baseline => {}
+        }
+        kernel(Isa::Baseline)
+    }
+}
+
+/// `kernel` compiled with AVX-512 foundation enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn run_avx512<R>(kernel: impl FnOnce(Isa) -> R) -> R {
+    kernel(Isa::Avx512)
+}
+
+/// `kernel` compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn run_avx2<R>(kernel: impl FnOnce(Isa) -> R) -> R {
+    kernel(Isa::Avx2)
 }
 
 /// `acc[i] += w · src[i]` over the shorter of the two slices: one multiplication and one
@@ -49,33 +93,14 @@ impl Isa {
 /// [`Isa::current`] allows.
 #[inline]
 pub fn add_scaled(acc: &mut [f32], w: f32, src: &[f32]) {
-    #[cfg(target_arch = "x86_64")]
-    match Isa::current() {
-        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-        Isa::Avx512 => return unsafe { add_scaled_avx512(acc, w, src) },
-        Isa::Avx2 => return unsafe { add_scaled_avx2(acc, w, src) },
-        Isa::Baseline => {}
-    }
-    add_scaled_plain(acc, w, src);
-}
-
-#[inline(always)]
-fn add_scaled_plain(acc: &mut [f32], w: f32, src: &[f32]) {
-    for (a, &v) in acc.iter_mut().zip(src) {
-        *a += w * v;
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn add_scaled_avx2(acc: &mut [f32], w: f32, src: &[f32]) {
-    add_scaled_plain(acc, w, src);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn add_scaled_avx512(acc: &mut [f32], w: f32, src: &[f32]) {
-    add_scaled_plain(acc, w, src);
+    Isa::current().run(
+        #[inline(always)]
+        |_| {
+            for (a, &v) in acc.iter_mut().zip(src) {
+                *a += w * v;
+            }
+        },
+    );
 }
 
 #[cfg(test)]

@@ -61,15 +61,21 @@ fn restore_row_pair(
     c_first: usize,
     share: f32,
 ) {
-    let cols = top.len();
+    let cols = top.len().min(bottom.len());
     for c in (c_first..cols.saturating_sub(1)).step_by(2) {
-        // The block's cells in row-major order.
-        let lowered = [
-            raw_top[c] - top[c],
-            raw_top[c + 1] - top[c + 1],
-            raw_bottom[c] - bottom[c],
-            raw_bottom[c + 1] - bottom[c + 1],
+        let ([top_left, top_right], [bottom_left, bottom_right]) =
+            (&mut top[c..c + 2], &mut bottom[c..c + 2])
+        else {
+            continue;
+        };
+        // The block's cells in row-major order, each with its value before breaching.
+        let block = [
+            (top_left, raw_top[c]),
+            (top_right, raw_top[c + 1]),
+            (bottom_left, raw_bottom[c]),
+            (bottom_right, raw_bottom[c + 1]),
         ];
+        let lowered = block.each_ref().map(|(cell, raw)| raw - **cell);
         let channel = lowered.map(|d| d > 0.0);
         let (mut carved_volume, mut kept) = (0.0f32, 0u32);
         for (&d, &is_channel) in lowered.iter().zip(&channel) {
@@ -81,15 +87,9 @@ fn restore_row_pair(
         }
         if carved_volume > 0.0 && kept > 0 {
             let raise = share * carved_volume / kept as f32;
-            for (k, &is_channel) in channel.iter().enumerate() {
+            for ((cell, _), is_channel) in block.into_iter().zip(channel) {
                 if !is_channel {
-                    let v = match k {
-                        0 => &mut top[c],
-                        1 => &mut top[c + 1],
-                        2 => &mut bottom[c],
-                        _ => &mut bottom[c + 1],
-                    };
-                    *v += raise;
+                    *cell += raise;
                 }
             }
         }

@@ -40,6 +40,7 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
     // vectorises).
     let mut best = vec![0.0f64; cols];
     let mut codes = vec![0u64; cols];
+    let isa = Isa::current();
     for r in 0..rows {
         let dist = &geo.dist[r * 8..r * 8 + 8];
         best.fill(0.0);
@@ -65,7 +66,7 @@ pub fn d8_receivers(filled: &Array2<f32>, cs: &CellSizes) -> Array2<u8> {
                 dist: dist[d],
                 code: d as u64,
             };
-            d8_direction(&direction, &mut best[c0..c1], &mut codes[c0..c1]);
+            d8_direction(isa, &direction, &mut best[c0..c1], &mut codes[c0..c1]);
         }
         for (o, &code) in out[r * cols..(r + 1) * cols].iter_mut().zip(&codes) {
             *o = code as u8;
@@ -85,55 +86,37 @@ struct Direction<'a> {
 }
 
 /// Each cell whose drop to its neighbour in `dir` (`here − there`, in `f64`) is positive and
-/// whose slope `drop / dist` beats its best so far takes the direction's code.
+/// whose slope `drop / dist` beats its best so far takes the direction's code; in the build
+/// `isa` allows (the same bits in every build).
 #[inline]
-fn d8_direction(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
-    #[cfg(target_arch = "x86_64")]
-    match Isa::current() {
-        // SAFETY: `Isa::current` returns these only when the CPU reports the feature.
-        Isa::Avx512 => return unsafe { d8_direction_avx512(dir, best, codes) },
-        Isa::Avx2 => return unsafe { d8_direction_avx2(dir, best, codes) },
-        Isa::Baseline => {}
-    }
-    d8_direction_plain(dir, best, codes);
-}
-
-#[inline(always)]
-fn d8_direction_plain(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
-    let n = dir
-        .here
-        .len()
-        .min(dir.there.len())
-        .min(best.len())
-        .min(codes.len());
-    let (here, there, best, codes) = (
-        &dir.here[..n],
-        &dir.there[..n],
-        &mut best[..n],
-        &mut codes[..n],
+fn d8_direction(isa: Isa, dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
+    isa.run(
+        #[inline(always)]
+        |_| {
+            let n = dir
+                .here
+                .len()
+                .min(dir.there.len())
+                .min(best.len())
+                .min(codes.len());
+            let (here, there, best, codes) = (
+                &dir.here[..n],
+                &dir.there[..n],
+                &mut best[..n],
+                &mut codes[..n],
+            );
+            let (dist, code) = (dir.dist, dir.code);
+            for i in 0..n {
+                let drop = f64::from(here[i]) - f64::from(there[i]);
+                let slope = drop / dist;
+                // False for NaN on either side. Both tests are evaluated (no branch), so the
+                // loop vectorises.
+                let take = (drop > 0.0) & (slope > best[i]);
+                best[i] = if take { slope } else { best[i] };
+                codes[i] = if take { code } else { codes[i] };
+            }
+        },
     );
-    let (dist, code) = (dir.dist, dir.code);
-    for i in 0..n {
-        let drop = f64::from(here[i]) - f64::from(there[i]);
-        let slope = drop / dist;
-        // False for NaN on either side. Both tests are evaluated (no branch), so the loop
-        // vectorises.
-        let take = (drop > 0.0) & (slope > best[i]);
-        best[i] = if take { slope } else { best[i] };
-        codes[i] = if take { code } else { codes[i] };
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn d8_direction_avx2(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
-    d8_direction_plain(dir, best, codes);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn d8_direction_avx512(dir: &Direction<'_>, best: &mut [f64], codes: &mut [u64]) {
-    d8_direction_plain(dir, best, codes);
 }
 
 /// D8 upstream area (m²) from a receiver grid as produced by [`d8_receivers`] (codes ≥ 8 and
@@ -346,7 +329,7 @@ pub fn log_upstream_area(area: &Array2<f64>) -> Array2<f32> {
 mod tests {
     use super::*;
 
-    /// Every vector build of the D8 row update this CPU runs equals the plain loop bit for bit
+    /// Every vector build of the D8 row update this CPU runs equals the baseline build bit for bit
     /// (slopes and codes), on rows with rises, falls, ties, NaN and single-ulp steps.
     #[test]
     fn d8_direction_builds_equal_the_plain_loop() {
@@ -379,24 +362,15 @@ mod tests {
                 f(&mut best, &mut codes);
                 (best.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), codes)
             };
-            let plain = run(&|b, c| d8_direction_plain(&dir, b, c));
+            let plain = run(&|b, c| d8_direction(Isa::Baseline, &dir, b, c));
             if n >= 31 {
                 // The rows exercise both outcomes.
                 assert!(plain.1.contains(&3));
                 assert!(plain.1.contains(&u64::from(D8_NONE)));
             }
-            #[cfg(target_arch = "x86_64")]
-            {
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the CPU reports AVX2.
-                    let v = run(&|b, c| unsafe { d8_direction_avx2(&dir, b, c) });
-                    assert_eq!(v, plain);
-                }
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the CPU reports AVX-512F.
-                    let v = run(&|b, c| unsafe { d8_direction_avx512(&dir, b, c) });
-                    assert_eq!(v, plain);
-                }
+            for isa in Isa::builds() {
+                let v = run(&|b, c| d8_direction(isa, &dir, b, c));
+                assert_eq!(v, plain, "{isa:?}");
             }
         }
     }

@@ -477,41 +477,12 @@ fn dots_blocked<const N: usize, const W: usize>(
     }
 }
 
-/// [`dots_blocked`] with its block width: one query in blocks of [`ATOM_BLOCK`] atoms, a
-/// batch in blocks of `BATCH_W` (what the build's registers hold).
-#[inline(always)]
-fn dots_sized<const N: usize, const BATCH_W: usize>(
-    qs: [&[f32]; N],
-    lo_t: &[f32],
-    n_pad: usize,
-    dots: [&mut [f32]; N],
-) {
-    if N == 1 {
-        dots_blocked::<N, ATOM_BLOCK>(qs, lo_t, n_pad, dots);
-    } else {
-        dots_blocked::<N, BATCH_W>(qs, lo_t, n_pad, dots);
-    }
-}
-
-/// The same kernel compiled for AVX2: wider vectors, the same IEEE multiplications and additions
-/// in the same order (no fused multiply-add), hence the same bits as the baseline build. A batch
-/// goes in blocks of 16 atoms (16 registers).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn dots_avx2<const N: usize>(qs: [&[f32]; N], lo_t: &[f32], n_pad: usize, dots: [&mut [f32]; N]) {
-    dots_sized::<N, 16>(qs, lo_t, n_pad, dots);
-}
-
-/// The same kernel compiled for AVX-512 (the same bits, as [`dots_avx2`]); 32 registers hold a
-/// batch's accumulators for blocks of [`ATOM_BLOCK`] atoms.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn dots_avx512<const N: usize>(qs: [&[f32]; N], lo_t: &[f32], n_pad: usize, dots: [&mut [f32]; N]) {
-    dots_sized::<N, ATOM_BLOCK>(qs, lo_t, n_pad, dots);
-}
-
 /// The dot products of `N` queries of `lo_t`'s dimension, each into its own `n_pad`-long slice,
-/// by the widest build `isa` allows.
+/// by [`dots_blocked`] in the widest build `isa` allows. One query goes in blocks of
+/// [`ATOM_BLOCK`] atoms; a batch in blocks of what the build's registers hold: 8 atoms in the
+/// baseline build, 16 with AVX2 (16 registers), [`ATOM_BLOCK`] with AVX-512 (32 registers).
+/// Every build does the same IEEE multiplications and additions in the same order, hence the same
+/// bits.
 fn all_dots<const N: usize>(
     qs: [&[f32]; N],
     lo_t: &[f32],
@@ -519,15 +490,15 @@ fn all_dots<const N: usize>(
     dots: [&mut [f32]; N],
     isa: Isa,
 ) {
-    #[cfg(target_arch = "x86_64")]
-    match isa {
-        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-        Isa::Avx512 => return unsafe { dots_avx512(qs, lo_t, n_pad, dots) },
-        Isa::Avx2 => return unsafe { dots_avx2(qs, lo_t, n_pad, dots) },
-        Isa::Baseline => {}
-    }
-    let _ = isa;
-    dots_sized::<N, 8>(qs, lo_t, n_pad, dots);
+    isa.run(
+        #[inline(always)]
+        |build| match (N, build) {
+            (1, _) => dots_blocked::<N, ATOM_BLOCK>(qs, lo_t, n_pad, dots),
+            (_, Isa::Avx512) => dots_blocked::<N, ATOM_BLOCK>(qs, lo_t, n_pad, dots),
+            (_, Isa::Avx2) => dots_blocked::<N, 16>(qs, lo_t, n_pad, dots),
+            (_, Isa::Baseline) => dots_blocked::<N, 8>(qs, lo_t, n_pad, dots),
+        },
+    );
 }
 
 /// Scratch buffers reused across queries so that matching does not allocate.
@@ -757,36 +728,10 @@ impl Matcher {
         k: usize,
         out: &mut Vec<Ranked>,
     ) {
-        #[cfg(target_arch = "x86_64")]
-        match self.isa {
-            // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-            Isa::Avx512 => return unsafe { self.best_k_avx512(q, scratch, k, out) },
-            Isa::Avx2 => return unsafe { self.best_k_avx2(q, scratch, k, out) },
-            Isa::Baseline => {}
-        }
-        self.best_k_scan(q, scratch, k, out);
-    }
-
-    /// [`Matcher::best_k`] compiled for AVX2: the same IEEE operations in the same order (no
-    /// fused multiply-add), hence the same result; the chunk tests and bounds run on wider
-    /// vectors.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn best_k_avx2(&self, q: &Query, scratch: &mut MatchScratch, k: usize, out: &mut Vec<Ranked>) {
-        self.best_k_scan(q, scratch, k, out);
-    }
-
-    /// [`Matcher::best_k`] compiled for AVX-512 (the same result, as [`Matcher::best_k_avx2`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn best_k_avx512(
-        &self,
-        q: &Query,
-        scratch: &mut MatchScratch,
-        k: usize,
-        out: &mut Vec<Ranked>,
-    ) {
-        self.best_k_scan(q, scratch, k, out);
+        self.isa.run(
+            #[inline(always)]
+            |_| self.best_k_scan(q, scratch, k, out),
+        );
     }
 
     /// The search of [`Matcher::best_k`], inlined into each build.
@@ -1038,14 +983,7 @@ mod tests {
                 d.iter().map(|v| v.to_bits()).collect()
             })
             .collect();
-        let mut isas = vec![Isa::Baseline];
-        if Isa::detect() != Isa::Baseline {
-            isas.push(Isa::Avx2);
-        }
-        if Isa::detect() == Isa::Avx512 {
-            isas.push(Isa::Avx512);
-        }
-        for isa in isas {
+        for isa in Isa::builds() {
             let mut out = vec![vec![0.0f32; n_pad]; DOT_BATCH];
             let [o0, o1, o2, o3] = out.as_mut_slice() else {
                 unreachable!()

@@ -379,40 +379,10 @@ fn next_atom<T: Copy + Into<f64>>(
     (support, coefs): (&[usize], &[f64]),
     excluded: &[f64],
 ) -> (Option<usize>, f64) {
-    #[cfg(target_arch = "x86_64")]
-    match Isa::current() {
-        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-        Isa::Avx512 => {
-            return unsafe { next_atom_avx512(dty, gram, k, (support, coefs), excluded) }
-        }
-        Isa::Avx2 => return unsafe { next_atom_avx2(dty, gram, k, (support, coefs), excluded) },
-        Isa::Baseline => {}
-    }
-    next_atom_lanes(dty, gram, k, (support, coefs), excluded)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn next_atom_avx512<T: Copy + Into<f64>>(
-    dty: &[T],
-    gram: &[f64],
-    k: usize,
-    sc: (&[usize], &[f64]),
-    excluded: &[f64],
-) -> (Option<usize>, f64) {
-    next_atom_lanes(dty, gram, k, sc, excluded)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn next_atom_avx2<T: Copy + Into<f64>>(
-    dty: &[T],
-    gram: &[f64],
-    k: usize,
-    sc: (&[usize], &[f64]),
-    excluded: &[f64],
-) -> (Option<usize>, f64) {
-    next_atom_lanes(dty, gram, k, sc, excluded)
+    Isa::current().run(
+        #[inline(always)]
+        |_| next_atom_lanes(dty, gram, k, (support, coefs), excluded),
+    )
 }
 
 /// [`next_atom`] in [`SCAN_LANES`] lanes: lane `t` keeps the largest `|c_j|` of the atoms

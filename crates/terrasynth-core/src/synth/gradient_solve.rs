@@ -237,28 +237,10 @@ fn apply_fixed<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32])
     }
 }
 
-/// [`apply_fixed`] compiled for AVX2 (no fused multiply-add: the same bits).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn apply_fixed_avx2<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32]) {
-    apply_fixed::<N>(weights, inputs, out);
-}
-
-/// [`apply_fixed`] compiled for AVX-512 (no fused multiply-add: the same bits).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn apply_fixed_avx512<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32]) {
-    apply_fixed::<N>(weights, inputs, out);
-}
-
+/// [`apply_fixed`] in the widest build `isa` allows (no fused multiply-add: the same bits).
 fn apply_sized<const N: usize>(weights: &[f32], inputs: &[f32], out: &mut [f32], isa: Isa) {
-    #[cfg(target_arch = "x86_64")]
-    match isa {
-        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-        Isa::Avx512 => return unsafe { apply_fixed_avx512::<N>(weights, inputs, out) },
-        Isa::Avx2 => return unsafe { apply_fixed_avx2::<N>(weights, inputs, out) },
-        Isa::Baseline => {}
-    }
-    let _ = isa;
-    apply_fixed::<N>(weights, inputs, out);
+    isa.run(
+        #[inline(always)]
+        |_| apply_fixed::<N>(weights, inputs, out),
+    );
 }

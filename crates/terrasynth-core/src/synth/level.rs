@@ -912,38 +912,10 @@ impl Amplifier {
         out_strip: &mut [f32],
         acc: StripBuffers<'_>,
     ) {
-        #[cfg(target_arch = "x86_64")]
-        match Isa::current() {
-            // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-            Isa::Avx512 => return unsafe { self.blend_strip_avx512(job, y0, out_strip, acc) },
-            Isa::Avx2 => return unsafe { self.blend_strip_avx2(job, y0, out_strip, acc) },
-            Isa::Baseline => {}
-        }
-        self.blend_strip_with(job, y0, out_strip, acc);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn blend_strip_avx512(
-        &self,
-        job: &StripJob<'_>,
-        y0: i64,
-        out: &mut [f32],
-        acc: StripBuffers<'_>,
-    ) {
-        self.blend_strip_with(job, y0, out, acc);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn blend_strip_avx2(
-        &self,
-        job: &StripJob<'_>,
-        y0: i64,
-        out: &mut [f32],
-        acc: StripBuffers<'_>,
-    ) {
-        self.blend_strip_with(job, y0, out, acc);
+        Isa::current().run(
+            #[inline(always)]
+            |_| self.blend_strip_with(job, y0, out_strip, acc),
+        );
     }
 
     /// The body of [`Amplifier::blend_strip`], inlined into each build.
@@ -1421,38 +1393,10 @@ fn measure_patches(
     side_cell: (usize, f32),
     octave: Option<&mut OctaveScratch>,
 ) -> PatchMeasures {
-    #[cfg(target_arch = "x86_64")]
-    match Isa::current() {
-        // SAFETY: `Isa::detect` returns these only when the CPU reports the feature.
-        Isa::Avx512 => {
-            return unsafe { measure_patches_avx512(patches, centred, side_cell, octave) }
-        }
-        Isa::Avx2 => return unsafe { measure_patches_avx2(patches, centred, side_cell, octave) },
-        Isa::Baseline => {}
-    }
-    measure_patches_with(patches, centred, side_cell, octave)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn measure_patches_avx512(
-    patches: [&[f32]; DOT_BATCH],
-    centred: [&mut [f32]; DOT_BATCH],
-    side_cell: (usize, f32),
-    octave: Option<&mut OctaveScratch>,
-) -> PatchMeasures {
-    measure_patches_with(patches, centred, side_cell, octave)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn measure_patches_avx2(
-    patches: [&[f32]; DOT_BATCH],
-    centred: [&mut [f32]; DOT_BATCH],
-    side_cell: (usize, f32),
-    octave: Option<&mut OctaveScratch>,
-) -> PatchMeasures {
-    measure_patches_with(patches, centred, side_cell, octave)
+    Isa::current().run(
+        #[inline(always)]
+        |_| measure_patches_with(patches, centred, side_cell, octave),
+    )
 }
 
 /// The body of [`measure_patches`], inlined into each build.
