@@ -61,6 +61,10 @@ impl Isa {
     /// not inlined runs in the baseline build (the same result, only slower). Every kernel run
     /// this way does the same IEEE operations in the same order in every build (no fused
     /// multiply-add), so its result is bit-identical to the baseline build's.
+    ///
+    /// In a profile every kernel's wider build is a `simd::run_avx512` (or `run_avx2`) symbol:
+    /// `perf report --sort symbol,srcline`, or a DWARF call graph (`perf record --call-graph
+    /// dwarf`), names the kernel inlined in it.
     #[inline(always)]
     pub fn run<R>(self, kernel: impl FnOnce(Isa) -> R) -> R {
         #[cfg(target_arch = "x86_64")]
