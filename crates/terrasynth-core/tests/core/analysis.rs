@@ -134,6 +134,11 @@ fn real_grid_strategy() -> impl Strategy<Value = (Array2<f32>, CellSizes)> {
     })
 }
 
+/// A grid's values as bit patterns, for comparisons bit for bit (NaN equal to NaN).
+fn bits(a: &Array2<f32>) -> Vec<u32> {
+    a.iter().map(|v| v.to_bits()).collect()
+}
+
 fn rel_close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * a.abs().max(b.abs()).max(1e-300)
 }
@@ -212,7 +217,6 @@ proptest! {
         for z in [&tied, &real] {
             let fast = analysis::priority_flood_fill_flat(z);
             let slow = naive::fill_flat(z);
-            let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             prop_assert_eq!(bits(&fast), bits(&slow));
         }
     }
@@ -227,7 +231,6 @@ proptest! {
         for z in [&tied, &real] {
             let fast = analysis::priority_flood_fill(z);
             let slow = naive::priority_flood_fill_binary_heap(z);
-            let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             prop_assert_eq!(bits(&fast), bits(&slow));
         }
     }
@@ -501,7 +504,6 @@ proptest! {
         azimuth in 0.0f32..360.0,
         altitude in 1.0f32..89.0,
     ) {
-        let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         for (z, cs) in [(&flat, &flat_cs), (&real, &real_cs)] {
             let [slope, north, shade] = analysis::slope_northness_shade(z, cs, azimuth, altitude);
             prop_assert_eq!(bits(&slope), bits(&analysis::slope_degrees(z, cs)));
