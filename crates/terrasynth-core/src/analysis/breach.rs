@@ -40,7 +40,7 @@ use ndarray::{s, Array2};
 use rayon::prelude::*;
 
 use super::common::D8_OFFSETS;
-use super::flood::{MinQueue, QuadHeap};
+use super::flood::QuadHeap;
 
 /// Cost of one (cardinal) step of a channel, metres: prefers short channels among equally deep
 /// ones.

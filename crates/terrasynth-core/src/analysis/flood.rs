@@ -2,8 +2,10 @@
 //! optimal depression-filling and watershed-labeling algorithm for digital elevation models"),
 //! in its improved form: a priority queue for cells that keep their own elevation plus a plain
 //! FIFO for cells raised inside a depression, which never need re-sorting. The priority queue is
-//! a bitset over the cells ranked in advance (`rank_queue`) for grids of fewer than 2³²
-//! cells, a 4-ary heap for larger ones.
+//! a bitset over the cells ranked in advance (`rank_queue`) for grids of fewer than 2³¹ cells
+//! (with their frame), a 4-ary heap for larger ones. The flood works on a copy of the grid framed
+//! by closed cells, each cell's value beside its rank, so that it needs no bounds checks and a
+//! cell's neighbourhood costs three cache lines.
 //!
 //! All border cells are outlets, and so are NaN cells (nodata): they seed the flood and keep
 //! their value, and their neighbours drain into them. Output is always `≥` the input.
@@ -13,7 +15,7 @@ use std::collections::{BinaryHeap, VecDeque};
 
 use ndarray::Array2;
 
-use super::common::{neighbour, next_up, order_key, values, D8_OFFSETS};
+use super::common::{next_up, order_key, values, D8_OFFSETS};
 use super::rank_queue::RankQueue;
 
 /// A heap entry ordering cells by (elevation key, row-major index).
@@ -59,14 +61,19 @@ impl Entry for (u32, usize) {
 /// is distinct (a cell enters once; ties are broken by the index), so every correct queue pops
 /// the same sequence and the flood's result does not depend on which one runs.
 pub(crate) trait MinQueue<E> {
-    fn push(&mut self, e: E);
+    /// Queues entry `e` of the cell whose tag (before the flood closed it) is `tag`: the tag
+    /// [`MinQueue::tag_cells`] gave it, or 0.
+    fn push(&mut self, e: E, tag: u32);
     fn peek(&self) -> Option<E>;
     fn pop(&mut self) -> Option<E>;
+    /// Gives cells tags before the flood starts (`tag(index, value)`, values below 2³¹), for a
+    /// queue that finds a cell's place from a tag kept beside its value faster than from its
+    /// entry. None by default.
+    fn tag_cells(&self, _tag: &mut dyn FnMut(usize, u32)) {}
 }
 
-/// The standard library's binary heap (the reference queue of [`super::naive`]).
 impl<E: Ord + Copy> MinQueue<E> for BinaryHeap<Reverse<E>> {
-    fn push(&mut self, e: E) {
+    fn push(&mut self, e: E, _tag: u32) {
         BinaryHeap::push(self, Reverse(e));
     }
     fn peek(&self) -> Option<E> {
@@ -85,18 +92,21 @@ pub(crate) struct QuadHeap<E> {
     v: Vec<E>,
 }
 
-impl<E: Ord + Copy> MinQueue<E> for QuadHeap<E> {
-    fn push(&mut self, e: E) {
+impl<E: Ord + Copy> QuadHeap<E> {
+    /// Queues `e`.
+    pub(crate) fn push(&mut self, e: E) {
         let hole = self.v.len();
         self.v.push(e);
         self.sift_up(hole, e);
     }
 
-    fn peek(&self) -> Option<E> {
+    /// The smallest entry.
+    pub(crate) fn peek(&self) -> Option<E> {
         self.v.first().copied()
     }
 
-    fn pop(&mut self) -> Option<E> {
+    /// Removes and returns the smallest entry.
+    pub(crate) fn pop(&mut self) -> Option<E> {
         let last = self.v.pop()?;
         let Some(&top) = self.v.first() else {
             return Some(last);
@@ -124,9 +134,7 @@ impl<E: Ord + Copy> MinQueue<E> for QuadHeap<E> {
         self.sift_up(i, last);
         Some(top)
     }
-}
 
-impl<E: Ord + Copy> QuadHeap<E> {
     /// Removes every entry, keeping the allocation.
     pub(crate) fn clear(&mut self) {
         self.v.clear();
@@ -146,6 +154,18 @@ impl<E: Ord + Copy> QuadHeap<E> {
     }
 }
 
+impl<E: Ord + Copy> MinQueue<E> for QuadHeap<E> {
+    fn push(&mut self, e: E, _tag: u32) {
+        QuadHeap::push(self, e);
+    }
+    fn peek(&self) -> Option<E> {
+        QuadHeap::peek(self)
+    }
+    fn pop(&mut self) -> Option<E> {
+        QuadHeap::pop(self)
+    }
+}
+
 /// Shared Priority-Flood. `raise(c)` is the value a cell at or below the level of the cell `c`
 /// it is reached from is raised to: `c` itself (flat fill) or the next float above (ε fill).
 ///
@@ -155,74 +175,104 @@ impl<E: Ord + Copy> QuadHeap<E> {
 /// ordered flood; ties in the heap are broken by the row-major index, so results are fully
 /// deterministic.
 fn flood(z: &Array2<f32>, raise: impl Fn(f32) -> f32) -> Array2<f32> {
-    flood_in(
-        z,
-        raise,
-        |w| RankQueue::new(w.iter().map(|&v| order_key(v))),
-        |_| QuadHeap::default(),
-    )
+    flood_in(z, raise, RankQueue::new, QuadHeap::default)
 }
 
-/// [`flood`] with the queue `small` makes for grids of fewer than 2³² cells and the one `large`
-/// makes for larger grids, each given the grid's values.
+/// One cell of the grid a flood works on, framed by a ring of closed cells so that every cell
+/// has eight neighbours: its value (filled in place) and its tag (the queue's, see
+/// [`MinQueue::tag_cells`]) with [`CLOSED`] set once it has entered a queue. Value and tag side
+/// by side, a cell's neighbourhood is three cache lines however the flood jumps across the grid.
+#[derive(Clone, Copy)]
+struct Cell {
+    v: f32,
+    tag: u32,
+}
+
+/// The bit of a [`Cell`]'s tag set once the cell has entered a queue (or is the frame).
+const CLOSED: u32 = 1 << 31;
+
+/// [`flood`] with the queue `small` makes for grids whose framed cells number fewer than 2³¹
+/// (given every cell's entry, `(order key of its value << 32) | framed index`, in increasing
+/// index order) and the one `large` makes for larger grids.
 pub(crate) fn flood_in<Q, Q2>(
     z: &Array2<f32>,
     raise: impl Fn(f32) -> f32,
-    small: impl FnOnce(&[f32]) -> Q,
-    large: impl FnOnce(&[f32]) -> Q2,
+    small: impl FnOnce(Vec<u64>) -> Q,
+    large: impl FnOnce() -> Q2,
 ) -> Array2<f32>
 where
     Q: MinQueue<u64>,
     Q2: MinQueue<(u32, usize)>,
 {
     let (rows, cols) = z.dim();
-    let w: Vec<f32> = values(z).into_owned();
+    let w = values(z);
     if rows < 3 || cols < 3 {
-        return Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone());
+        return z.to_owned();
     }
-    let w = if w.len() < (1usize << 32) {
-        let open = small(&w);
-        flood_with::<u64, Q>(w, rows, cols, raise, open)
+    let fc = cols + 2;
+    let mut g = vec![
+        Cell {
+            v: f32::NAN,
+            tag: CLOSED
+        };
+        (rows + 2) * fc
+    ];
+    for (r, row) in w.chunks_exact(cols).enumerate() {
+        let first = (r + 1) * fc + 1;
+        for (cell, &v) in g[first..first + cols].iter_mut().zip(row) {
+            *cell = Cell { v, tag: 0 };
+        }
+    }
+    if g.len() < (1usize << 31) {
+        let entries = g
+            .iter()
+            .enumerate()
+            .filter(|(_, cell)| cell.tag == 0)
+            .map(|(i, cell)| (u64::from(order_key(cell.v)) << 32) | i as u64)
+            .collect();
+        let open = small(entries);
+        open.tag_cells(&mut |i, tag| g[i].tag = tag);
+        flood_with::<u64, Q>(&mut g, rows, cols, raise, open);
     } else {
-        let open = large(&w);
-        flood_with::<(u32, usize), Q2>(w, rows, cols, raise, open)
-    };
-    Array2::from_shape_vec((rows, cols), w).unwrap_or_else(|_| z.clone())
+        flood_with::<(u32, usize), Q2>(&mut g, rows, cols, raise, large());
+    }
+    let filled: Vec<f32> = g
+        .chunks_exact(fc)
+        .skip(1)
+        .take(rows)
+        .flat_map(|row| row[1..=cols].iter().map(|cell| cell.v))
+        .collect();
+    Array2::from_shape_vec((rows, cols), filled).unwrap_or_else(|_| z.clone())
 }
 
-/// The flood of the values `w` of a `rows × cols` grid with the empty queue `open`, whose
-/// entries are `(order key of the cell's value, index)`.
+/// The flood of the framed `rows × cols` grid `g` with the empty queue `open`, whose entries
+/// are `(order key of the cell's value, framed index)`.
 fn flood_with<E: Entry, Q: MinQueue<E>>(
-    mut w: Vec<f32>,
+    g: &mut [Cell],
     rows: usize,
     cols: usize,
     raise: impl Fn(f32) -> f32,
     mut open: Q,
-) -> Vec<f32> {
-    /// `state` bits: the cell has entered a queue; the cell is on the grid's border.
-    const CLOSED: u8 = 1;
-    const BORDER: u8 = 2;
-    let mut state = vec![0u8; w.len()];
-    let mut pit: VecDeque<usize> = VecDeque::new();
+) {
+    let fc = cols + 2;
+    // Outlets: the border cells and the NaN cells.
     for r in 0..rows {
         let on_edge = r == 0 || r == rows - 1;
         for c in 0..cols {
-            let i = r * cols + c;
-            let border = on_edge || c == 0 || c == cols - 1;
-            if border {
-                state[i] = BORDER;
-            }
-            if border || w[i].is_nan() {
-                state[i] |= CLOSED;
-                open.push(E::make(order_key(w[i]), i));
+            let i = (r + 1) * fc + c + 1;
+            let cell = &mut g[i];
+            if on_edge || c == 0 || c == cols - 1 || cell.v.is_nan() {
+                let tag = cell.tag;
+                cell.tag = tag | CLOSED;
+                open.push(E::make(order_key(cell.v), i), tag);
             }
         }
     }
-    let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * cols as isize + dc);
-    let mut nbrs = [0usize; 8];
+    let offsets: [isize; 8] = D8_OFFSETS.map(|(dr, dc)| dr * fc as isize + dc);
+    let mut pit: VecDeque<usize> = VecDeque::new();
     loop {
         let from_pit = match (pit.front(), open.peek()) {
-            (Some(&p), Some(e)) => order_key(w[p]) <= e.key(),
+            (Some(&p), Some(e)) => order_key(g[p].v) <= e.key(),
             (Some(_), None) => true,
             (None, Some(_)) => false,
             (None, None) => break,
@@ -238,38 +288,24 @@ fn flood_with<E: Entry, Q: MinQueue<E>>(
                 None => break,
             }
         };
-        let count = if state[i] & BORDER == 0 {
-            for (k, o) in offsets.iter().enumerate() {
-                nbrs[k] = i.wrapping_add_signed(*o);
-            }
-            8
-        } else {
-            let (r, c) = (i / cols, i % cols);
-            let mut k = 0;
-            for d in 0..8 {
-                if let Some((nr, nc)) = neighbour(r, c, d, rows, cols) {
-                    nbrs[k] = nr * cols + nc;
-                    k += 1;
-                }
-            }
-            k
-        };
-        let spill = raise(w[i]);
-        for &j in &nbrs[..count] {
-            if state[j] & CLOSED != 0 {
+        let spill = raise(g[i].v);
+        for o in offsets {
+            let j = i.wrapping_add_signed(o);
+            let cell = &mut g[j];
+            if cell.tag & CLOSED != 0 {
                 continue;
             }
-            state[j] |= CLOSED;
+            let tag = cell.tag;
+            cell.tag = tag | CLOSED;
             // A NaN `spill` (from an outlet) compares false: the neighbour keeps its value.
-            if w[j] <= spill {
-                w[j] = spill;
+            if cell.v <= spill {
+                cell.v = spill;
                 pit.push_back(j);
             } else {
-                open.push(E::make(order_key(w[j]), j));
+                open.push(E::make(order_key(cell.v), j), tag);
             }
         }
     }
-    w
 }
 
 /// Priority-Flood+ε: fills every depression and imposes a tiny gradient on the filled flats

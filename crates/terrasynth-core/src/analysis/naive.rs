@@ -79,7 +79,7 @@ pub fn priority_flood_fill_binary_heap(z: &Array2<f32>) -> Array2<f32> {
         z,
         super::next_up,
         |_| BinaryHeap::<Reverse<u64>>::new(),
-        |_| BinaryHeap::<Reverse<(u32, usize)>>::new(),
+        BinaryHeap::<Reverse<(u32, usize)>>::new,
     )
 }
 

@@ -1,8 +1,9 @@
-//! The Priority-Flood's queue for grids of fewer than 2³² cells: every cell's entry (its order key
+//! The Priority-Flood's queue for grids of fewer than 2³¹ cells: every cell's entry (its order key
 //! and its row-major index) is known before the flood starts and a cell enters at most once, so
-//! the entries are ranked once, by a radix sort, and the queue is a bitset over the ranks. A push
-//! sets a bit; the smallest entry is the first set bit, found from a cursor that only moves back
-//! when a push lands before it. The flood's pushes all lie above the entry being processed, so
+//! the entries are ranked once, by a radix sort, and the queue is a bitset over the ranks. Each
+//! cell's rank is its tag in the flood's grid, kept beside its value ([`MinQueue::tag_cells`]),
+//! so a push sets its bit without looking the rank up in another array. The smallest entry is
+//! the first set bit, found from a cursor that only moves back when a push lands before it. The flood's pushes all lie above the entry being processed, so
 //! the cursor sweeps the bitset once: a pop costs a bit scan instead of a heap's sift-down.
 //!
 //! It pops the same sequence as any other [`MinQueue`] holding the same entries (they are
@@ -12,13 +13,13 @@
 use super::flood::MinQueue;
 
 /// A min-queue of the entries `(key << 32) | index` of one grid's cells, each cell's key fixed
-/// in advance. Pushing an entry whose key is not its cell's is a logic error (debug-asserted).
+/// in advance. A cell's rank (the position of its entry in increasing order) is the tag
+/// [`MinQueue::tag_cells`] gives it, and [`MinQueue::push`] takes the entry's place from it.
+/// Pushing an entry with another cell's tag is a logic error (debug-asserted).
 #[derive(Debug)]
 pub(crate) struct RankQueue {
     /// Every cell's entry, in increasing order.
     sorted: Vec<u64>,
-    /// `rank[i]`: the position of cell `i`'s entry in `sorted`.
-    rank: Vec<u32>,
     /// One bit per rank, set while that entry is queued.
     bits: Vec<u64>,
     /// The first non-zero word of `bits`, or `bits.len()` when the queue is empty.
@@ -26,24 +27,14 @@ pub(crate) struct RankQueue {
 }
 
 impl RankQueue {
-    /// An empty queue for the cells whose order keys are `keys` (cell `i`'s entry is
-    /// `(keys[i] << 32) | i`). There must be fewer than 2³² keys.
-    pub(crate) fn new(keys: impl ExactSizeIterator<Item = u32>) -> Self {
-        let n = keys.len();
-        debug_assert!(u32::try_from(n).is_ok());
-        let mut sorted: Vec<u64> = keys
-            .enumerate()
-            .map(|(i, k)| (u64::from(k) << 32) | i as u64)
-            .collect();
-        sort_by_key(&mut sorted);
-        let mut rank = vec![0u32; n];
-        for (r, &e) in sorted.iter().enumerate() {
-            rank[(e & 0xFFFF_FFFF) as usize] = r as u32;
-        }
-        let words = n.div_ceil(64);
+    /// An empty queue for the cells whose entries are `entries` (`(key << 32) | index`, in
+    /// increasing index order). There must be fewer than 2³¹ entries.
+    pub(crate) fn new(mut entries: Vec<u64>) -> Self {
+        debug_assert!(entries.len() < 1 << 31);
+        sort_by_key(&mut entries);
+        let words = entries.len().div_ceil(64);
         RankQueue {
-            sorted,
-            rank,
+            sorted: entries,
             bits: vec![0; words],
             first: words,
         }
@@ -91,9 +82,9 @@ fn sort_by_key(v: &mut Vec<u64>) {
 
 impl MinQueue<u64> for RankQueue {
     #[inline]
-    fn push(&mut self, e: u64) {
-        let r = self.rank[(e & 0xFFFF_FFFF) as usize] as usize;
-        debug_assert_eq!(self.sorted[r], e, "an entry whose key is not its cell's");
+    fn push(&mut self, e: u64, tag: u32) {
+        let r = tag as usize;
+        debug_assert_eq!(self.sorted[r], e, "an entry with another cell's tag");
         self.bits[r >> 6] |= 1 << (r & 63);
         self.first = self.first.min(r >> 6);
     }
@@ -114,6 +105,12 @@ impl MinQueue<u64> for RankQueue {
         }
         Some(self.sorted[r])
     }
+
+    fn tag_cells(&self, tag: &mut dyn FnMut(usize, u32)) {
+        for (r, &e) in self.sorted.iter().enumerate() {
+            tag((e & 0xFFFF_FFFF) as usize, r as u32);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -130,23 +127,32 @@ mod tests {
         }
     }
 
+    /// The entries `(key << 32) | index` of `keys`, in index order.
+    fn entries(keys: &[u32]) -> Vec<u64> {
+        keys.iter()
+            .enumerate()
+            .map(|(i, &k)| (u64::from(k) << 32) | i as u64)
+            .collect()
+    }
+
     /// The ranked entries are the cells' entries in increasing order, for keys that are all
-    /// equal (no byte to sort on), keys with many ties and keys that differ in every byte.
+    /// equal (no byte to sort on), keys with many ties and keys that differ in every byte; each
+    /// cell is tagged once, with its entry's rank.
     #[test]
     fn the_ranks_sort_the_entries() {
         let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         for spread in [1u64, 7, 1 << 12, 1 << 32] {
             let keys: Vec<u32> = (0..5000).map(|_| (next() % spread) as u32).collect();
-            let q = RankQueue::new(keys.iter().copied());
-            let mut expected: Vec<u64> = keys
-                .iter()
-                .enumerate()
-                .map(|(i, &k)| (u64::from(k) << 32) | i as u64)
-                .collect();
+            let q = RankQueue::new(entries(&keys));
+            let mut expected = entries(&keys);
             expected.sort_unstable();
             assert_eq!(q.sorted, expected);
+            let mut tags = vec![None; keys.len()];
+            q.tag_cells(&mut |i, r| {
+                assert_eq!(tags[i].replace(r), None, "cell {i} tagged twice");
+            });
             for (r, &e) in q.sorted.iter().enumerate() {
-                assert_eq!(q.rank[(e & 0xFFFF_FFFF) as usize] as usize, r);
+                assert_eq!(tags[(e & 0xFFFF_FFFF) as usize], Some(r as u32));
             }
         }
     }
@@ -159,7 +165,9 @@ mod tests {
         let n = 3000usize;
         let keys: Vec<u32> = (0..n).map(|_| (next() % 400) as u32).collect();
         let entry = |i: usize| (u64::from(keys[i]) << 32) | i as u64;
-        let mut queue = RankQueue::new(keys.iter().copied());
+        let mut queue = RankQueue::new(entries(&keys));
+        let mut rank = vec![0u32; n];
+        queue.tag_cells(&mut |i, r| rank[i] = r);
         let mut reference = BTreeSet::new();
         let mut unpushed: Vec<usize> = (0..n).collect();
         for round in 0..2 * n {
@@ -167,7 +175,7 @@ mod tests {
                 assert_eq!(queue.pop(), reference.pop_first());
             } else {
                 let i = unpushed.swap_remove((next() % unpushed.len() as u64) as usize);
-                queue.push(entry(i));
+                queue.push(entry(i), rank[i]);
                 reference.insert(entry(i));
             }
             assert_eq!(queue.peek(), reference.first().copied());
@@ -176,7 +184,7 @@ mod tests {
             assert_eq!(queue.pop(), Some(e));
         }
         assert_eq!((queue.peek(), queue.pop()), (None, None));
-        let mut empty = RankQueue::new(std::iter::empty());
+        let mut empty = RankQueue::new(Vec::new());
         assert_eq!((empty.peek(), empty.pop()), (None, None));
     }
 }
