@@ -69,7 +69,7 @@ pub(crate) trait MinQueue<E> {
     /// Gives cells tags before the flood starts (`tag(index, value)`, values below 2³¹), for a
     /// queue that finds a cell's place from a tag kept beside its value faster than from its
     /// entry. None by default.
-    fn tag_cells(&self, _tag: &mut dyn FnMut(usize, u32)) {}
+    fn tag_cells(&self, _tag: impl FnMut(usize, u32)) {}
 }
 
 impl<E: Ord + Copy> MinQueue<E> for BinaryHeap<Reverse<E>> {
@@ -224,24 +224,25 @@ where
         }
     }
     if g.len() < (1usize << 31) {
-        let entries = g
-            .iter()
-            .enumerate()
-            .filter(|(_, cell)| cell.tag == 0)
-            .map(|(i, cell)| (u64::from(order_key(cell.v)) << 32) | i as u64)
-            .collect();
+        let mut entries = Vec::with_capacity(rows * cols);
+        for (r, row) in w.chunks_exact(cols).enumerate() {
+            let first = (r + 1) * fc + 1;
+            entries.extend(
+                (first..)
+                    .zip(row)
+                    .map(|(i, &v)| (u64::from(order_key(v)) << 32) | i as u64),
+            );
+        }
         let open = small(entries);
-        open.tag_cells(&mut |i, tag| g[i].tag = tag);
+        open.tag_cells(|i, tag| g[i].tag = tag);
         flood_with::<u64, Q>(&mut g, rows, cols, raise, open);
     } else {
         flood_with::<(u32, usize), Q2>(&mut g, rows, cols, raise, large());
     }
-    let filled: Vec<f32> = g
-        .chunks_exact(fc)
-        .skip(1)
-        .take(rows)
-        .flat_map(|row| row[1..=cols].iter().map(|cell| cell.v))
-        .collect();
+    let mut filled = Vec::with_capacity(rows * cols);
+    for row in g.chunks_exact(fc).skip(1).take(rows) {
+        filled.extend(row[1..=cols].iter().map(|cell| cell.v));
+    }
     Array2::from_shape_vec((rows, cols), filled).unwrap_or_else(|_| z.clone())
 }
 

@@ -106,7 +106,7 @@ impl MinQueue<u64> for RankQueue {
         Some(self.sorted[r])
     }
 
-    fn tag_cells(&self, tag: &mut dyn FnMut(usize, u32)) {
+    fn tag_cells(&self, mut tag: impl FnMut(usize, u32)) {
         for (r, &e) in self.sorted.iter().enumerate() {
             tag((e & 0xFFFF_FFFF) as usize, r as u32);
         }
@@ -148,7 +148,7 @@ mod tests {
             expected.sort_unstable();
             assert_eq!(q.sorted, expected);
             let mut tags = vec![None; keys.len()];
-            q.tag_cells(&mut |i, r| {
+            q.tag_cells(|i, r| {
                 assert_eq!(tags[i].replace(r), None, "cell {i} tagged twice");
             });
             for (r, &e) in q.sorted.iter().enumerate() {
@@ -167,7 +167,7 @@ mod tests {
         let entry = |i: usize| (u64::from(keys[i]) << 32) | i as u64;
         let mut queue = RankQueue::new(entries(&keys));
         let mut rank = vec![0u32; n];
-        queue.tag_cells(&mut |i, r| rank[i] = r);
+        queue.tag_cells(|i, r| rank[i] = r);
         let mut reference = BTreeSet::new();
         let mut unpushed: Vec<usize> = (0..n).collect();
         for round in 0..2 * n {
