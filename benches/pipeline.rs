@@ -6,7 +6,8 @@
 //! (`gradient_level`, output points per second, issue #20) with a default tile set built from the
 //! same grid; the drainage routing of one tile's region (`routing`: Priority-Flood+ε, D8
 //! receivers, accumulation, and the layer's Priority-Flood to the spill levels and D8 receivers
-//! with the flats resolved, on 512² of the real terrain).
+//! with the flats resolved, on 512² of the real terrain; `routing/512² amplified`: the layer's
+//! routing on one amplification level of it, whose continuous heights are the drainage tiles').
 //! Run with `cargo bench --bench pipeline` (or `-- omp`, `-- compact`, `-- instances`, `-- gradient_level`, `-- routing` for a part).
 
 // A measurement tool: a failed unwrap aborts the run with its message.
@@ -302,6 +303,55 @@ fn bench_routing(c: &mut Criterion) {
     g.finish();
 }
 
+/// The drainage layer's routing on a served-like region: one amplification level of the real
+/// terrain with the default dictionary (512² out of the 256² at rows 600, columns 900 of the
+/// embedded grid, the window `routing/512²` reads at full size). Its continuous heights route
+/// slower per cell than the GEBCO window's whole metres, as the drainage tiles do (cells per
+/// second): the layer's Priority-Flood to the spill levels, D8 receivers with the flats
+/// resolved and the accumulation of the cell areas.
+fn bench_routing_amplified(c: &mut Criterion) {
+    use terrasynth_core::analysis;
+    let grid = embedded::tienshan().expect("embedded grid");
+    let base = grid.filled().expect("valid data");
+    let cell_m = grid.georef.cell_sizes(grid.rows()).mean_cell();
+    let dict = std::sync::Arc::new(default_dictionary(&base, cell_m, true));
+    let amp = Amplifier::new(dict, &MatchWeights::default()).expect("amplifier");
+    let out = Window::new(1800, 1200, 512, 512);
+    let need = amp.parent_window_for(out);
+    let parent = Field::elevation_only(
+        need,
+        base.slice(s![
+            need.row0 as usize..need.row0 as usize + need.rows,
+            need.col0 as usize..need.col0 as usize + need.cols
+        ])
+        .to_owned(),
+    );
+    let z = amp
+        .amplify(&parent, out, cell_m as f32)
+        .expect("amplify")
+        .elevation;
+    let half = cell_m / 2.0;
+    let cells = terrasynth_core::raster::CellSizes {
+        dx: vec![half; out.rows],
+        dy: vec![half; out.rows],
+    };
+    let filled_flat = analysis::priority_flood_fill_flat(&z);
+    let receivers = analysis::d8_receivers_over_flats(&filled_flat, &cells, 128, None);
+    let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
+    let mut g = c.benchmark_group("routing/512² amplified");
+    g.throughput(Throughput::Elements(z.len() as u64));
+    g.bench_function("priority_flood_fill_flat", |b| {
+        b.iter(|| analysis::priority_flood_fill_flat(&z))
+    });
+    g.bench_function("d8_receivers_over_flats", |b| {
+        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, &cells, 128, None))
+    });
+    g.bench_function("accumulate_sources", |b| {
+        b.iter(|| analysis::accumulate_sources(&receivers, &sources))
+    });
+    g.finish();
+}
+
 /// The default world's material weights (the splat, colour and instance tiles' per-pixel work)
 /// and every species' niche suitability (the vegetation tiles') over 512² of the real terrain,
 /// with the terrain's own slope, northness and curvature and uniform vegetation and wetness,
@@ -370,6 +420,7 @@ fn bench_layers(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
-    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing, bench_layers
+    targets = bench, bench_sparse, bench_instances, bench_gradient, bench_routing,
+        bench_routing_amplified, bench_layers
 }
 criterion_main!(benches);
