@@ -61,6 +61,16 @@ fn default_dictionary(base: &Array2<f32>, cell_m: f64, derived: bool) -> Diction
     d
 }
 
+/// The elevation of `base` over window `need` (an amplifier's parent window inside it).
+fn parent_field(base: &Array2<f32>, need: Window) -> Field {
+    let (r, c) = (need.row0 as usize, need.col0 as usize);
+    Field::elevation_only(
+        need,
+        base.slice(s![r..r + need.rows, c..c + need.cols])
+            .to_owned(),
+    )
+}
+
 fn bench(c: &mut Criterion) {
     let grid = embedded::tienshan().expect("embedded grid");
     let base = grid.filled().expect("valid data");
@@ -117,15 +127,7 @@ fn bench(c: &mut Criterion) {
         let mut g = c.benchmark_group(format!("amplify_level/{label}"));
         for side in [256usize, 1024] {
             let out = Window::new(1000, 1200, side, side);
-            let need = amp.parent_window_for(out);
-            let parent = Field::elevation_only(
-                need,
-                base.slice(s![
-                    need.row0 as usize..need.row0 as usize + need.rows,
-                    need.col0 as usize..need.col0 as usize + need.cols
-                ])
-                .to_owned(),
-            );
+            let parent = parent_field(&base, amp.parent_window_for(out));
             g.throughput(Throughput::Elements(out.len() as u64));
             g.bench_with_input(BenchmarkId::from_parameter(side), &parent, |b, p| {
                 b.iter(|| amp.amplify(p, out, cell_m as f32).expect("amplify"))
@@ -280,9 +282,7 @@ fn bench_routing(c: &mut Criterion) {
     use terrasynth_core::analysis;
     let (z, cells) = real_terrain_512();
     let filled = analysis::priority_flood_fill(&z);
-    let filled_flat = analysis::priority_flood_fill_flat(&z);
     let receivers = analysis::d8_receivers(&filled, &cells);
-    let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
     let mut g = c.benchmark_group("routing/512²");
     g.throughput(Throughput::Elements(z.len() as u64));
     g.bench_function("priority_flood_fill", |b| {
@@ -291,16 +291,31 @@ fn bench_routing(c: &mut Criterion) {
     g.bench_function("d8_receivers", |b| {
         b.iter(|| analysis::d8_receivers(&filled, &cells))
     });
+    bench_layer_routing(&mut g, &z, &cells, &receivers);
+    g.finish();
+}
+
+/// The drainage layer's own routing of `z` (cells `cells`) in group `g`: Priority-Flood to the
+/// spill levels, D8 receivers with the flats resolved (a 128-px span, the halo up to zoom 13),
+/// and the accumulation of the cell areas along `receivers`.
+fn bench_layer_routing(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    z: &Array2<f32>,
+    cells: &terrasynth_core::raster::CellSizes,
+    receivers: &Array2<u8>,
+) {
+    use terrasynth_core::analysis;
+    let filled_flat = analysis::priority_flood_fill_flat(z);
+    let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
     g.bench_function("priority_flood_fill_flat", |b| {
-        b.iter(|| analysis::priority_flood_fill_flat(&z))
+        b.iter(|| analysis::priority_flood_fill_flat(z))
     });
     g.bench_function("d8_receivers_over_flats", |b| {
-        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, &cells, 128, None))
+        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, cells, 128, None))
     });
     g.bench_function("accumulate_sources", |b| {
-        b.iter(|| analysis::accumulate_sources(&receivers, &sources))
+        b.iter(|| analysis::accumulate_sources(receivers, &sources))
     });
-    g.finish();
 }
 
 /// The drainage layer's routing on a served-like region: one amplification level of the real
@@ -317,15 +332,7 @@ fn bench_routing_amplified(c: &mut Criterion) {
     let dict = std::sync::Arc::new(default_dictionary(&base, cell_m, true));
     let amp = Amplifier::new(dict, &MatchWeights::default()).expect("amplifier");
     let out = Window::new(1800, 1200, 512, 512);
-    let need = amp.parent_window_for(out);
-    let parent = Field::elevation_only(
-        need,
-        base.slice(s![
-            need.row0 as usize..need.row0 as usize + need.rows,
-            need.col0 as usize..need.col0 as usize + need.cols
-        ])
-        .to_owned(),
-    );
+    let parent = parent_field(&base, amp.parent_window_for(out));
     let z = amp
         .amplify(&parent, out, cell_m as f32)
         .expect("amplify")
@@ -337,18 +344,9 @@ fn bench_routing_amplified(c: &mut Criterion) {
     };
     let filled_flat = analysis::priority_flood_fill_flat(&z);
     let receivers = analysis::d8_receivers_over_flats(&filled_flat, &cells, 128, None);
-    let sources = Array2::from_shape_fn(z.dim(), |(r, _)| cells.area(r));
     let mut g = c.benchmark_group("routing/512² amplified");
     g.throughput(Throughput::Elements(z.len() as u64));
-    g.bench_function("priority_flood_fill_flat", |b| {
-        b.iter(|| analysis::priority_flood_fill_flat(&z))
-    });
-    g.bench_function("d8_receivers_over_flats", |b| {
-        b.iter(|| analysis::d8_receivers_over_flats(&filled_flat, &cells, 128, None))
-    });
-    g.bench_function("accumulate_sources", |b| {
-        b.iter(|| analysis::accumulate_sources(&receivers, &sources))
-    });
+    bench_layer_routing(&mut g, &z, &cells, &receivers);
     g.finish();
 }
 
