@@ -72,6 +72,7 @@ pub(crate) trait MinQueue<E> {
     fn tag_cells(&self, _tag: impl FnMut(usize, u32)) {}
 }
 
+/// The standard library's binary heap (the reference queue of [`super::naive`]).
 impl<E: Ord + Copy> MinQueue<E> for BinaryHeap<Reverse<E>> {
     fn push(&mut self, e: E, _tag: u32) {
         BinaryHeap::push(self, Reverse(e));
@@ -217,22 +218,19 @@ where
         };
         (rows + 2) * fc
     ];
+    // The cells into the frame and, for the ranked queue, their entries, in one pass.
+    let ranked = g.len() < (1usize << 31);
+    let mut entries = Vec::with_capacity(if ranked { rows * cols } else { 0 });
     for (r, row) in w.chunks_exact(cols).enumerate() {
         let first = (r + 1) * fc + 1;
-        for (cell, &v) in g[first..first + cols].iter_mut().zip(row) {
+        for ((i, cell), &v) in (first..).zip(&mut g[first..first + cols]).zip(row) {
             *cell = Cell { v, tag: 0 };
+            if ranked {
+                entries.push((u64::from(order_key(v)) << 32) | i as u64);
+            }
         }
     }
-    if g.len() < (1usize << 31) {
-        let mut entries = Vec::with_capacity(rows * cols);
-        for (r, row) in w.chunks_exact(cols).enumerate() {
-            let first = (r + 1) * fc + 1;
-            entries.extend(
-                (first..)
-                    .zip(row)
-                    .map(|(i, &v)| (u64::from(order_key(v)) << 32) | i as u64),
-            );
-        }
+    if ranked {
         let open = small(entries);
         open.tag_cells(|i, tag| g[i].tag = tag);
         flood_with::<u64, Q>(&mut g, rows, cols, raise, open);
@@ -373,6 +371,34 @@ mod tests {
             assert_eq!(heap.pop(), Some(e));
         }
         assert_eq!(heap.pop(), None);
+    }
+
+    /// The flood on the 4-ary heap (the queue of grids of 2³¹ cells or more, which ignores the
+    /// cells' tags) equals the flood on the ranked queue bit for bit, both fills, on a grid with
+    /// ties, pits and NaN cells.
+    #[test]
+    fn the_heap_flood_equals_the_ranked_flood() {
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let z = Array2::from_shape_fn((37, 53), |_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            match x % 50 {
+                0 => f32::NAN,
+                k if k < 20 => (k / 5) as f32 * 3.0,
+                _ => (x >> 40) as f32 / 1e3,
+            }
+        });
+        for raise in [std::convert::identity as fn(f32) -> f32, next_up] {
+            let ranked = flood(&z, raise);
+            let heap = flood_in(&z, raise, |_| QuadHeap::<u64>::default(), QuadHeap::default);
+            let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&heap), bits(&ranked));
+            assert!(
+                ranked.iter().zip(&z).any(|(f, v)| f > v),
+                "the grid has pits"
+            );
+        }
     }
 
     #[test]

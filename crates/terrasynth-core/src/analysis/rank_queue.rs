@@ -3,8 +3,9 @@
 //! the entries are ranked once, by a radix sort, and the queue is a bitset over the ranks. Each
 //! cell's rank is its tag in the flood's grid, kept beside its value ([`MinQueue::tag_cells`]),
 //! so a push sets its bit without looking the rank up in another array. The smallest entry is
-//! the first set bit, found from a cursor that only moves back when a push lands before it. The flood's pushes all lie above the entry being processed, so
-//! the cursor sweeps the bitset once: a pop costs a bit scan instead of a heap's sift-down.
+//! the first set bit, found from a cursor that only moves back when a push lands before it. The
+//! flood's pushes all lie above the entry being processed, so the cursor sweeps the bitset once:
+//! a pop costs a bit scan instead of a heap's sift-down.
 //!
 //! It pops the same sequence as any other [`MinQueue`] holding the same entries (they are
 //! distinct), so the flood's bits do not depend on it; the flood's property test compares it with
