@@ -404,6 +404,12 @@ fn progress_bar() -> ProgressBar {
     bar
 }
 
+/// Shows a staged run's progress on a [`progress_bar`]: the stage's name and its fraction done.
+fn show_stage(bar: &ProgressBar, stage: &str, fraction: f64) {
+    bar.set_message(stage.to_string());
+    bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+}
+
 fn run_sketch(a: SketchCli) -> Result<(), CliError> {
     let bar = progress_bar();
     let summary = sketch::run(
@@ -415,10 +421,7 @@ fn run_sketch(a: SketchCli) -> Result<(), CliError> {
             output: a.output.clone(),
             seed: a.seed,
         },
-        &mut |stage, fraction| {
-            bar.set_message(stage.to_string());
-            bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
-        },
+        &mut |stage, fraction| show_stage(&bar, stage, fraction),
     );
     bar.finish_and_clear();
     let summary = summary?;
@@ -463,8 +466,7 @@ fn run_build(args: BuildCli) -> Result<(), CliError> {
         no_derived: args.no_derived,
     };
     let summary = build::run(&build_args, &args.output, &mut |stage, fraction| {
-        bar.set_message(stage.to_string());
-        bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+        show_stage(&bar, stage, fraction)
     });
     bar.finish_and_clear();
     let summary = summary?;

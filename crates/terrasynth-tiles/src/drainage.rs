@@ -180,20 +180,16 @@ impl DrainageLevels {
                     *code = analysis::D8_NONE;
                 }
             });
-        let mut sources = Array2::zeros(heights.dim());
-        for (r, mut row) in sources.rows_mut().into_iter().enumerate() {
-            let area = cells.area(r);
-            ndarray::Zip::from(&mut row)
-                .and(coverage.row(r))
-                .and(wet[SEA].row(r))
-                .for_each(|s, &cover, &sea| {
-                    *s = if crate::coverage::uncovered(cover) || sea > 0.0 {
+        let mut sources =
+            ndarray::Zip::indexed(&coverage)
+                .and(&wet[SEA])
+                .map_collect(|(r, _), &cover, &sea| {
+                    if crate::coverage::uncovered(cover) || sea > 0.0 {
                         0.0
                     } else {
-                        area
-                    };
+                        cells.area(r)
+                    }
                 });
-        }
         // Parent inflow: parent pixels on the ring around the region's parent window whose
         // steepest descent points into it.
         let ew = Window::new(pw.col0 - 2, pw.row0 - 2, pw.cols + 4, pw.rows + 4);
