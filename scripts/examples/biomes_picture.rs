@@ -15,6 +15,7 @@ use std::error::Error;
 use std::path::Path;
 
 use ndarray::{s, Array2};
+use terrasynth_core::math;
 use terrasynth_core::raster::{embedded, write_geotiff_file, Grid};
 use terrasynth_tiles::{parse_request, render};
 
@@ -96,8 +97,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     let n = f64::from(1u32 << z);
     let tx = ((lon + 180.0) / 360.0 * n).floor() as u32;
     let lr = lat.to_radians();
-    let ty =
-        ((1.0 - (lr.tan() + 1.0 / lr.cos()).ln() / std::f64::consts::PI) / 2.0 * n).floor() as u32;
+    let ty = ((1.0 - math::log(math::tan(lr) + 1.0 / math::cos(lr)) / std::f64::consts::PI) / 2.0
+        * n)
+        .floor() as u32;
     let (x0, y0, tcols, trows) = (tx - 2, ty - 1, 4u32, 2u32);
     let mut img = Array2::from_elem((256 * trows as usize, 256 * tcols as usize), [0u8; 4]);
     let none = Default::default();

@@ -21,6 +21,7 @@ use std::path::Path;
 
 use ndarray::Array2;
 use terrasynth_core::analysis::{flow_accumulation_d8, priority_flood_fill};
+use terrasynth_core::math;
 use terrasynth_core::raster::{read_geotiff_file, write_geotiff_file, CellSizes, Grid, ReadLimits};
 
 /// Upsampling factor between the suite's inputs and outputs (two ×2 levels).
@@ -34,7 +35,7 @@ fn cells(g: &Grid) -> CellSizes {
 }
 
 fn log_area(g: &Grid) -> Array2<f64> {
-    flow_accumulation_d8(&priority_flood_fill(&g.data), &cells(g)).mapv(|v| v.max(1.0).log10())
+    flow_accumulation_d8(&priority_flood_fill(&g.data), &cells(g)).mapv(|v| math::log10(v.max(1.0)))
 }
 
 /// `coarse` bilinearly up-sampled ×[`FACTOR`] to `dim` (pixel centres aligned as the levels'

@@ -35,6 +35,7 @@ use std::path::{Path, PathBuf};
 use ndarray::Array2;
 use terrasynth_core::analysis::{band_energy, fft2, Complex};
 use terrasynth_core::dictionary::omp::solve;
+use terrasynth_core::math;
 use terrasynth_core::raster::{read_geotiff_file, write_geotiff_file, ReadLimits};
 use terrasynth_core::synth::baselines::bicubic_upsample;
 
@@ -76,7 +77,7 @@ fn high_pass(a: &Array2<f32>, cut: f64) -> Array2<f32> {
         k / n as f64
     };
     for ((i, j), v) in c.indexed_iter_mut() {
-        if freq(i, rows).hypot(freq(j, cols)) < cut {
+        if math::hypot(freq(i, rows), freq(j, cols)) < cut {
             *v = Complex::new(0.0, 0.0);
         }
     }
@@ -95,7 +96,7 @@ fn class_of(f: &[f64], r: i64, classes: usize) -> usize {
     let (gx, gy) = (at(0, 1) - at(0, -1), at(1, 0) - at(-1, 0));
     let lap = at(0, 1) + at(0, -1) + at(1, 0) + at(-1, 0);
     let sectors = classes / 2;
-    let angle = gy.atan2(gx).rem_euclid(std::f64::consts::PI);
+    let angle = math::atan2(gy, gx).rem_euclid(std::f64::consts::PI);
     let sector = ((angle / std::f64::consts::PI * sectors as f64) as usize).min(sectors - 1);
     sector * 2 + usize::from(lap > 0.0)
 }

@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use super::error::CliError;
 use terrasynth_core::analysis;
+use terrasynth_core::math;
 use terrasynth_core::raster::{read_raster_file, CellSizes, Grid, ReadLimits};
 use terrasynth_core::synth::baselines::{bicubic_upsample, fbm_upsample};
 
@@ -186,7 +187,7 @@ fn log_areas(z: &Array2<f32>, cells: &CellSizes) -> Vec<f64> {
     let filled = analysis::priority_flood_fill(z);
     analysis::flow_accumulation_d8(&filled, cells)
         .iter()
-        .map(|a| a.max(1.0).log10())
+        .map(|a| math::log10(a.max(1.0)))
         .collect()
 }
 

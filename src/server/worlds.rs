@@ -547,13 +547,16 @@ fn build_identity() -> Option<&'static [u8]> {
 mod tests {
     use super::*;
     use ndarray::Array2;
+    use terrasynth_core::math;
     use terrasynth_core::raster::{write_geotiff_file, Georef};
 
     /// A world whose one exemplar is a 96² hilly GeoTIFF in a temporary directory, with the
     /// given `[dictionary.vegetation_rasters]` lines.
     fn world_with(dir: &Path, rasters: &str) -> WorldConfig {
         let hills = Array2::from_shape_fn((96, 96), |(r, c)| {
-            2200.0 + 300.0 * (c as f32 * 0.07).sin() * (r as f32 * 0.05).cos() + 2.0 * r as f32
+            2200.0
+                + 300.0 * math::sinf(c as f32 * 0.07) * math::cosf(r as f32 * 0.05)
+                + 2.0 * r as f32
         });
         write_geotiff_file(
             &Grid::new(hills, Georef::local_metric(30.0)),

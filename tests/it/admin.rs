@@ -15,6 +15,7 @@ use axum::http::{header, Method, Request, StatusCode};
 use terrasynth::config::{parse_world, Config, Secret, ServerConfig};
 use terrasynth::server::startup::state_with;
 use terrasynth::server::{app, Worlds};
+use terrasynth_core::math;
 use terrasynth_core::raster::{Georef, Grid};
 use terrasynth_store::Store;
 
@@ -1200,7 +1201,7 @@ async fn api_dictionaries_and_worlds_use_their_own_species_and_materials() {
 fn one_mountain_tiff(rows: usize, cols: usize, row: f64, col: f64) -> Vec<u8> {
     let data = ndarray::Array2::from_shape_fn((rows, cols), |(r, c)| {
         let d2 = (r as f64 - row).powi(2) + (c as f64 - col).powi(2);
-        (500.0 + 2000.0 * (-d2 / 18.0).exp()) as f32
+        (500.0 + 2000.0 * math::exp(-d2 / 18.0)) as f32
     });
     let grid = terrasynth_core::raster::Grid::new(data, terrasynth_test_support::georef_15s());
     let mut out = std::io::Cursor::new(Vec::new());
@@ -1550,7 +1551,8 @@ async fn a_sketch_becomes_a_served_world_and_bad_sketches_store_nothing() {
     let px = |lon: f64| ((((lon + 180.0) / 360.0 * n - f64::from(x)) * 256.0) as usize).min(256);
     let py = |lat: f64| {
         let t = (1.0
-            - (lat.to_radians().tan() + 1.0 / lat.to_radians().cos()).ln() / std::f64::consts::PI)
+            - math::log(math::tan(lat.to_radians()) + 1.0 / math::cos(lat.to_radians()))
+                / std::f64::consts::PI)
             / 2.0;
         (((t * n - f64::from(y)) * 256.0) as usize).min(256)
     };
@@ -1792,7 +1794,7 @@ async fn api_worlds_take_painted_biomes_and_bad_biomes_store_nothing() {
     // everywhere, a negative and a NaN cell.
     let (n, half) = (64usize, 32usize);
     let elevation = tiff_of(n, n, |r, c| {
-        (900.0 + 400.0 * ((r as f64 * 0.2).sin() * (c as f64 * 0.17).cos())) as f32
+        (900.0 + 400.0 * (math::sin(r as f64 * 0.2) * math::cos(c as f64 * 0.17))) as f32
     });
     let parts = [
         ("elevation", elevation),

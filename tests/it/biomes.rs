@@ -11,6 +11,7 @@ use std::sync::Arc;
 use ndarray::{s, Array2};
 
 use terrasynth_core::dictionary::Dictionary;
+use terrasynth_core::math;
 use terrasynth_core::raster::Grid;
 use terrasynth_core::synth::Window;
 use terrasynth_test_support::coherence::mosaic_of;
@@ -40,7 +41,7 @@ fn dict_a() -> Arc<Dictionary> {
 fn dict_b() -> Arc<Dictionary> {
     let z = synthetic_terrain(160, 160, 9);
     let low = Array2::from_shape_fn((160, 160), |(r, c)| {
-        0.1 * z[[r, c]] + 0.5 * r as f32 + 30.0 * ((c as f32) * 0.3).sin()
+        0.1 * z[[r, c]] + 0.5 * r as f32 + 30.0 * math::sinf((c as f32) * 0.3)
     });
     small_dictionary_of(low, 9, true)
 }

@@ -10,6 +10,7 @@ use std::collections::HashMap;
 
 use ndarray::Array2;
 
+use terrasynth_core::math;
 use terrasynth_tiles::instances::instances_tile;
 use terrasynth_tiles::{parse_request, render, World};
 
@@ -38,10 +39,10 @@ fn world() -> World {
 fn covered(z: u8, px: i64, py: i64) -> Option<bool> {
     let n = 256.0 * f64::from(1u32 << z);
     let lon = (px as f64 + 0.5) / n * 360.0 - 180.0;
-    let lat = (std::f64::consts::PI * (1.0 - 2.0 * (py as f64 + 0.5) / n))
-        .sinh()
-        .atan()
-        .to_degrees();
+    let lat = math::atan(math::sinh(
+        std::f64::consts::PI * (1.0 - 2.0 * (py as f64 + 0.5) / n),
+    ))
+    .to_degrees();
     let (u, v) = ((lon - WEST) / CELL, (NORTH - lat) / CELL);
     if !(0.0..N as f64).contains(&u) || !(0.0..N as f64).contains(&v) {
         return Some(false);

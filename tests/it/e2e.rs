@@ -1,12 +1,14 @@
 //! End to end on the real binary and real sockets: `terrasynth serve` on the embedded default
 //! world builds its dictionary into a fresh store, serves plausible zoom-12 terrain over the
 //! Tien Shan, and two separately started processes return byte-identical tiles of every layer (at
-//! the native zoom and at amplified zooms). The second process reuses the store the first one filled.
+//! the native zoom and at amplified zooms). The second process reuses the store the first one
+//! filled, and glibc gives it the builds of its functions for a CPU without AVX2 and FMA.
 //! Issue #4's acceptance 3 and 4 on the default world, from tiles fetched over HTTP: vegetation
 //! follows the niche model on the served elevation, and drainage agrees with D8 on it.
 
 use ndarray::Array2;
 use terrasynth_core::landscape::LandscapeConfig;
+use terrasynth_core::math;
 use terrasynth_tiles::{decode_float_exr, decode_terrarium_png};
 
 use crate::support::{proc, start as start_server, start_logging, Server};
@@ -70,13 +72,16 @@ fn default_world_is_plausible_and_deterministic_across_processes() {
     );
     // A second process (reusing the store the first filled) returns the same bytes. It logs
     // every level tile it computes (`RUST_LOG=…,terrasynth_tiles::levels=debug`, README "Cold
-    // tiles").
+    // tiles"). To glibc it runs on a CPU without AVX2 and FMA (a tunable other C libraries
+    // ignore), so every C library function it calls takes another build than the first
+    // process's: tiles must not depend on them (`terrasynth_core::math`).
     let log = store.path().join("server-b.log");
     let b = start_logging(
         &[],
         &[
             ("TERRASYNTH_CACHE_MB", "256"),
             ("RUST_LOG", "info,terrasynth_tiles::levels=debug"),
+            ("GLIBC_TUNABLES", "glibc.cpu.hwcaps=-AVX2,-FMA"),
         ],
         store.path(),
         &log,
@@ -160,7 +165,7 @@ fn default_world_landscape_agrees_with_its_served_elevation() {
         }
     }
     // Acceptance 3: Pearson ≥ 0.6 per species present, density < 0.05 where the niche excludes.
-    let wet = area.mapv(f32::log10);
+    let wet = area.mapv(math::log10f);
     let fits = coherence::vegetation_fit_of(&species, z, y0, &elev, &wet, &densities);
     let mut tested = 0;
     for f in &fits {
@@ -256,12 +261,8 @@ fn default_world_instance_tiles_are_deterministic_and_stand_on_the_served_ground
     let elev = &elev[0].1;
     let n = f64::from(1u32 << z);
     let lon_of = |px: f64| px / n * 360.0 - 180.0;
-    let lat_of = |py: f64| {
-        (std::f64::consts::PI * (1.0 - 2.0 * py / n))
-            .sinh()
-            .atan()
-            .to_degrees()
-    };
+    let lat_of =
+        |py: f64| math::atan(math::sinh(std::f64::consts::PI * (1.0 - 2.0 * py / n))).to_degrees();
     let (west, east) = (lon_of(f64::from(x)), lon_of(f64::from(x + 1)));
     let (north, south) = (lat_of(f64::from(y)), lat_of(f64::from(y + 1)));
     let features = fc["features"].as_array().unwrap();
@@ -289,7 +290,9 @@ fn default_world_instance_tiles_are_deterministic_and_stand_on_the_served_ground
         // crate); points within 1e-6 px of a pixel edge are skipped (the lon/lat round trip).
         let fx = ((lon + 180.0) / 360.0 * n - f64::from(x)) * 256.0;
         let lr = lat.to_radians();
-        let fy = ((1.0 - (lr.tan() + 1.0 / lr.cos()).ln() / std::f64::consts::PI) / 2.0 * n
+        let fy = ((1.0 - math::log(math::tan(lr) + 1.0 / math::cos(lr)) / std::f64::consts::PI)
+            / 2.0
+            * n
             - f64::from(y))
             * 256.0;
         let edge = |v: f64| (v - v.round()).abs() < 1e-6;

@@ -7,6 +7,7 @@ use axum::body::Body;
 use axum::http::{header, Method, Request, StatusCode};
 
 use terrasynth::config::ServerConfig;
+use terrasynth_core::math;
 use terrasynth_tiles::decode_float_exr;
 
 use crate::support::{mini_router, send, send_json};
@@ -36,7 +37,7 @@ fn pixel_centre(z: u8, x: u32, y: u32, row: usize, col: usize) -> (f64, f64) {
     let py = f64::from(y) * 256.0 + row as f64 + 0.5;
     let lon = px / size * 360.0 - 180.0;
     let n = std::f64::consts::PI * (1.0 - 2.0 * py / size);
-    let lat = n.sinh().atan().to_degrees();
+    let lat = math::atan(math::sinh(n)).to_degrees();
     (lon, lat)
 }
 

@@ -12,6 +12,7 @@ use terrasynth_core::dictionary::MatchWeights;
 use terrasynth_core::landscape::LandscapeConfig;
 
 use crate::support::{decode_rgba, mini_router, send, small_world};
+use terrasynth_core::math;
 use terrasynth_core::synth::{Amplifier, Field, Window};
 use terrasynth_tiles::{decode_mapbox_png, decode_terrarium_png, World};
 
@@ -608,7 +609,7 @@ async fn landscape_layers_over_http() {
 /// each material weight.
 fn landscape_channels(world: &World, z: u8, x: u32, y: u32) -> Vec<Array2<f32>> {
     let mut out: Vec<Array2<f32>> = world.vegetation_tile(z, x, y).unwrap().to_vec();
-    out.push(world.drainage_tile(z, x, y).unwrap().mapv(f32::log10));
+    out.push(world.drainage_tile(z, x, y).unwrap().mapv(math::log10f));
     out.extend(world.material_tile(z, x, y).unwrap().weights.clone());
     out
 }

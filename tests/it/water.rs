@@ -11,6 +11,7 @@ use std::collections::HashMap;
 
 use ndarray::Array2;
 
+use terrasynth_core::math;
 use terrasynth_core::synth::Window;
 use terrasynth_tiles::layer_file::Refused;
 use terrasynth_tiles::{parse_request, render, LayerStore, Obtained, World};
@@ -51,10 +52,10 @@ fn in_bowl(z: u8, px: i64, py: i64) -> bool {
 fn within(z: u8, px: i64, py: i64, radius: f64) -> bool {
     let n = 256.0 * f64::from(1u32 << z);
     let lon = (px as f64 + 0.5) / n * 360.0 - 180.0;
-    let lat = (std::f64::consts::PI * (1.0 - 2.0 * (py as f64 + 0.5) / n))
-        .sinh()
-        .atan()
-        .to_degrees();
+    let lat = math::atan(math::sinh(
+        std::f64::consts::PI * (1.0 - 2.0 * (py as f64 + 0.5) / n),
+    ))
+    .to_degrees();
     let (c, r) = ((lon - 70.0) * 240.0 - 0.5, (43.0 - lat) * 240.0 - 0.5);
     ((r - CENTRE.0).powi(2) + (c - CENTRE.1).powi(2)).sqrt() < radius
 }

@@ -110,12 +110,13 @@ pub fn add_scaled(acc: &mut [f32], w: f32, src: &[f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math;
 
     #[test]
     fn add_scaled_equals_the_plain_loop_bit_for_bit() {
         for n in [0usize, 1, 7, 16, 33, 1000] {
-            let src: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin() * 1e3).collect();
-            let start: Vec<f32> = (0..n).map(|i| (i as f32 * 0.11).cos() * 7.0).collect();
+            let src: Vec<f32> = (0..n).map(|i| math::sinf(i as f32 * 0.37) * 1e3).collect();
+            let start: Vec<f32> = (0..n).map(|i| math::cosf(i as f32 * 0.11) * 7.0).collect();
             let (mut fast, mut plain) = (start.clone(), start.clone());
             add_scaled(&mut fast, 0.3137, &src);
             for (p, &v) in plain.iter_mut().zip(&src) {

@@ -6,6 +6,7 @@
 
 use ndarray::{s, Array2};
 use terrasynth_core::landscape::{Species, Trapezoid};
+use terrasynth_core::math;
 use terrasynth_tiles::{decode_terrarium_png, encode_terrarium_png, plane_cell_sizes, World};
 
 /// An `n × n` mosaic of 256-px tiles given by `tile(dx, dy)`.
@@ -109,7 +110,7 @@ pub struct SpeciesFit {
 /// [`vegetation_fit_of`].
 pub fn vegetation_fit(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Vec<SpeciesFit> {
     let elev = decoded_elevation(world, z, x0, y0, n);
-    let wet = served_drainage(world, z, x0, y0, n).mapv(f32::log10);
+    let wet = served_drainage(world, z, x0, y0, n).mapv(math::log10f);
     let vegs: Vec<Vec<Array2<f32>>> = (0..n * n)
         .map(|i| {
             world
@@ -196,8 +197,8 @@ pub fn drainage_fit_of(z: u8, y0: u32, elev: &Array2<f32>, served: &Array2<f32>)
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for r in 16..size - 16 {
         for c in 16..size - 16 {
-            a.push(f64::from(served[[r, c]]).log10());
-            b.push(d8[[r, c]].log10());
+            a.push(math::log10(f64::from(served[[r, c]])));
+            b.push(math::log10(d8[[r, c]]));
         }
     }
     let spearman = pearson(&ranks(&a), &ranks(&b));

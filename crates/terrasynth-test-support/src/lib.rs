@@ -11,6 +11,7 @@ pub mod mvt;
 pub mod process;
 
 use std::sync::Arc;
+use terrasynth_core::math;
 
 use ndarray::Array2;
 use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
@@ -33,7 +34,7 @@ pub fn synthetic_terrain(rows: usize, cols: usize, seed: u64) -> Array2<f32> {
         .enumerate()
         {
             let phase = s * (k as f64 + 1.0);
-            let v = (fx * x + fy * y + phase).sin();
+            let v = math::sin(fx * x + fy * y + phase);
             // Ridged: 1 − |sin| makes sharp crests.
             h += amp * (1.0 - 2.0 * v.abs());
         }
@@ -255,8 +256,9 @@ pub fn tile_of(lon: f64, lat: f64, z: u8) -> (u32, u32) {
     let n = f64::from(1u32 << z);
     let x = ((lon + 180.0) / 360.0 * n).floor() as u32;
     let lr = lat.to_radians();
-    let y =
-        ((1.0 - (lr.tan() + 1.0 / lr.cos()).ln() / std::f64::consts::PI) / 2.0 * n).floor() as u32;
+    let y = ((1.0 - math::log(math::tan(lr) + 1.0 / math::cos(lr)) / std::f64::consts::PI) / 2.0
+        * n)
+        .floor() as u32;
     (x, y)
 }
 

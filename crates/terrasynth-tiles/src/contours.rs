@@ -16,6 +16,7 @@
 //! [`BUFFER_PX`] pixels.
 
 use terrasynth_core::analysis::contour::contour_lines;
+use terrasynth_core::math;
 use terrasynth_core::synth::Window;
 
 use crate::error::TileError;
@@ -52,7 +53,7 @@ pub struct Contour {
 /// above `4 × cell_m`.
 pub fn auto_interval(cell_m: f64) -> f64 {
     let target = (4.0 * cell_m).max(MIN_INTERVAL_M);
-    let mut p = 10f64.powi(target.log10().floor() as i32);
+    let mut p = 10f64.powi(math::log10(target).floor() as i32);
     // log10 may round across a power of ten.
     while p > target {
         p /= 10.0;

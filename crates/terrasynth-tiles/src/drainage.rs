@@ -23,6 +23,7 @@ use std::sync::Arc;
 use ndarray::{s, Array2};
 
 use terrasynth_core::analysis::{self, D8_OFFSETS};
+use terrasynth_core::math;
 use terrasynth_core::synth::Window;
 
 use crate::base_layers::{cut, WholeWorld};
@@ -201,7 +202,7 @@ impl DrainageLevels {
             let ec = (qc - ew.col0) as usize;
             let zq = f64::from(pe[[er, ec]]);
             let (dx, dy) = (pcells.dx[er], pcells.dy[er]);
-            let diagonal = dx.hypot(dy);
+            let diagonal = math::hypot(dx, dy);
             let mut best = 0.0f64;
             let mut target = None;
             for &(dr, dc) in &D8_OFFSETS {

@@ -318,6 +318,7 @@ pub fn decode_float_exr(bytes: &[u8]) -> Result<Vec<(String, Array2<f32>)>, Tile
 mod tests {
     use super::*;
     use proptest::prelude::*;
+    use terrasynth_core::math;
 
     /// Raw RGB triples of a PNG, decoded by the test (through the shared helper, which only
     /// unpacks bytes and does not apply any height formula).
@@ -337,7 +338,7 @@ mod tests {
     fn webp_tiles_decode_to_the_png_heights_and_pixels() {
         let heights = Array2::from_shape_fn((256, 256), |(r, c)| {
             let (r, c) = (r as f32, c as f32);
-            1500.0 + 700.0 * (r * 0.031).sin() * (c * 0.017).cos() + 0.37 * r - 0.11 * c
+            1500.0 + 700.0 * math::sinf(r * 0.031) * math::cosf(c * 0.017) + 0.37 * r - 0.11 * c
                 + if (r as usize * 7 + c as usize) % 13 == 0 {
                     f32::NAN
                 } else {
@@ -457,7 +458,7 @@ mod tests {
     #[test]
     fn encodings_are_deterministic() {
         let h = Array2::from_shape_fn((256, 256), |(r, c)| {
-            (r as f32 * 7.25 - c as f32 * 3.5).sin() * 1500.0 + 2000.0
+            math::sinf(r as f32 * 7.25 - c as f32 * 3.5) * 1500.0 + 2000.0
         });
         assert_eq!(
             encode_terrarium_png(&h).expect("a"),

@@ -11,6 +11,7 @@
 
 use std::f64::consts::PI;
 
+use terrasynth_core::math;
 use terrasynth_core::raster::georef::MERCATOR_RADIUS_M;
 use terrasynth_core::raster::CellSizes;
 
@@ -43,7 +44,7 @@ fn tiles_per_side(z: u8) -> f64 {
 pub fn lonlat_to_mercator(lon_deg: f64, lat_deg: f64) -> (f64, f64) {
     let lat = lat_deg.clamp(-MAX_LATITUDE, MAX_LATITUDE).to_radians();
     let x = MERCATOR_RADIUS_M * lon_deg.to_radians();
-    let y = MERCATOR_RADIUS_M * (PI / 4.0 + lat / 2.0).tan().ln();
+    let y = MERCATOR_RADIUS_M * math::log(math::tan(PI / 4.0 + lat / 2.0));
     (x, y)
 }
 
@@ -51,7 +52,7 @@ pub fn lonlat_to_mercator(lon_deg: f64, lat_deg: f64) -> (f64, f64) {
 /// [`lonlat_to_mercator`] inside ±[`MAX_LATITUDE`]).
 pub fn mercator_to_lonlat(x: f64, y: f64) -> (f64, f64) {
     let lon = (x / MERCATOR_RADIUS_M).to_degrees();
-    let lat = (2.0 * (y / MERCATOR_RADIUS_M).exp().atan() - PI / 2.0).to_degrees();
+    let lat = (2.0 * math::atan(math::exp(y / MERCATOR_RADIUS_M)) - PI / 2.0).to_degrees();
     (lon, lat)
 }
 
@@ -70,7 +71,7 @@ pub fn plane_cell_sizes(z: u8, row0: i64, rows: usize) -> CellSizes {
         .map(|r| {
             let py = (row0 + r as i64) as f64 + 0.5;
             let yn = PI * (1.0 - 2.0 * py / world);
-            let c = m * yn.sinh().atan().cos();
+            let c = m * math::cos(math::atan(math::sinh(yn)));
             (c, c)
         })
         .unzip();
@@ -80,7 +81,7 @@ pub fn plane_cell_sizes(z: u8, row0: i64, rows: usize) -> CellSizes {
 /// True ground size in metres of a pixel of zoom `z` at latitude `lat_deg`,
 /// `pixel_size_m(z) · cos(lat)`.
 pub fn ground_cell_m(z: u8, lat_deg: f64) -> f64 {
-    pixel_size_m(z) * lat_deg.to_radians().cos()
+    pixel_size_m(z) * math::cos(lat_deg.to_radians())
 }
 
 /// Latitude in degrees of the north edge of tile row `y` (may be fractional) at zoom `z`.
@@ -157,7 +158,7 @@ pub fn native_zoom(cell_m_ground: f64, lat_deg: f64) -> u8 {
     if !(cell_m_ground.is_finite() && cell_m_ground > 0.0 && ground0 > 0.0) {
         return 0;
     }
-    let z = (ground0 / cell_m_ground).log2().round();
+    let z = math::log2(ground0 / cell_m_ground).round();
     if z.is_nan() {
         return 0;
     }
@@ -188,7 +189,8 @@ mod tests {
         let n = (1u64 << z) as f64;
         let lat_r = lat.to_radians();
         let x = ((lon + 180.0) / 360.0 * n).floor();
-        let y = ((1.0 - (lat_r.tan() + 1.0 / lat_r.cos()).ln() / PI) / 2.0 * n).floor();
+        let y =
+            ((1.0 - math::log(math::tan(lat_r) + 1.0 / math::cos(lat_r)) / PI) / 2.0 * n).floor();
         (x as u32, y as u32)
     }
 
@@ -246,10 +248,7 @@ mod tests {
         // Width of a z12 tile is 360/4096 degrees.
         assert!((e - w - 360.0 / 4096.0).abs() < 1e-12);
         // North edge by the slippy inverse formula: atan(sinh(π(1 − 2y/n))).
-        let n_ref = (PI * (1.0 - 2.0 * 1507.0 / 4096.0))
-            .sinh()
-            .atan()
-            .to_degrees();
+        let n_ref = math::atan(math::sinh(PI * (1.0 - 2.0 * 1507.0 / 4096.0))).to_degrees();
         assert!((n - n_ref).abs() < 1e-9, "{n} vs {n_ref}");
     }
 

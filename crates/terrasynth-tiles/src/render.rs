@@ -12,6 +12,7 @@ use ndarray::{s, Array2};
 
 use terrasynth_core::analysis::{hillshade_u8, DEFAULT_ALTITUDE_DEG};
 use terrasynth_core::landscape::{colour_of, quantise_weights};
+use terrasynth_core::math;
 use terrasynth_core::synth::Window;
 
 use crate::contours::encode_contours_mvt;
@@ -191,7 +192,7 @@ fn colour_map(world: &World, z: u8, x: u32, y: u32) -> Result<Array2<[u8; 4]>, T
     let (depth, _) = world.water_tile(z, x, y)?;
     let water = world.water_config();
     let l = world.landscape();
-    let flat = DEFAULT_ALTITUDE_DEG.to_radians().sin();
+    let flat = math::sinf(DEFAULT_ALTITUDE_DEG.to_radians());
     let mut w = vec![0.0f32; weights.len()];
     let rgba = Array2::from_shape_fn((256, 256), |(r, c)| {
         // Outside the base's coverage there is nothing to draw; on an overview's border the

@@ -311,6 +311,7 @@ pub fn mercator_mask_from_grid(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use terrasynth_core::math;
     use terrasynth_core::raster::georef::Georef;
 
     /// Pixel-centre longitude/latitude of global pixel (px, py) at zoom z, from the slippy-map
@@ -318,10 +319,7 @@ mod tests {
     fn centre_lonlat(z: u8, px: i64, py: i64) -> (f64, f64) {
         let n = 256.0 * (1u64 << z) as f64;
         let lon = (px as f64 + 0.5) / n * 360.0 - 180.0;
-        let lat = (PI * (1.0 - 2.0 * (py as f64 + 0.5) / n))
-            .sinh()
-            .atan()
-            .to_degrees();
+        let lat = math::atan(math::sinh(PI * (1.0 - 2.0 * (py as f64 + 0.5) / n))).to_degrees();
         (lon, lat)
     }
 

@@ -22,6 +22,7 @@ use ndarray::Array2;
 use terrasynth_core::landscape::{vegetation, LandscapeConfig};
 
 use crate::classes::ClassWeights;
+use terrasynth_core::math;
 use terrasynth_core::raster::box2;
 use terrasynth_core::synth::{AnyAmplifier, Field, LayerAtoms, Level, SynthError, Window};
 
@@ -373,5 +374,5 @@ struct Species<'a> {
 
 /// Wetness (log10 of the upstream area, 0 where there is none) of a drainage tile.
 pub fn wetness(area: &Array2<f32>) -> Array2<f32> {
-    area.mapv(|a| if a > 0.0 { a.log10() } else { 0.0 })
+    area.mapv(|a| if a > 0.0 { math::log10f(a) } else { 0.0 })
 }

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::common::{row_sizes, values};
 use super::hillshade::Light;
+use crate::math;
 use crate::raster::CellSizes;
 
 /// Horn (1981) gradient `(dz/dx eastwards, dz/dy northwards)` in m/m.
@@ -63,13 +64,13 @@ pub fn gradient(z: &Array2<f32>, cs: &CellSizes) -> (Array2<f32>, Array2<f32>) {
 /// The steepness `√(gx² + gy²)` of a cell of gradient `(x, y)`, in f64.
 #[inline]
 fn steepness(x: f32, y: f32) -> f64 {
-    (x as f64).hypot(y as f64)
+    math::hypot(x as f64, y as f64)
 }
 
 /// Degrees of a slope whose tangent, rounded to `f32` as [`slope`] stores it, is `tangent`.
 #[inline]
 fn degrees_of_tangent(tangent: f32) -> f32 {
-    (tangent as f64).atan().to_degrees() as f32
+    math::atan(tangent as f64).to_degrees() as f32
 }
 
 /// Northness of a cell of north gradient `y` and steepness `s` ([`steepness`]).
@@ -136,7 +137,7 @@ pub fn aspect(z: &Array2<f32>, cs: &CellSizes) -> Array2<f32> {
             return 0.0;
         }
         // Downslope vector is (-gx east, -gy north); compass bearing = atan2(east, north).
-        let mut a = (-(x as f64)).atan2(-(y as f64)).to_degrees();
+        let mut a = math::atan2(-(x as f64), -(y as f64)).to_degrees();
         if a < 0.0 {
             a += 360.0;
         }

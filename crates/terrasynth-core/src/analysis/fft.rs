@@ -13,6 +13,8 @@ use std::f64::consts::PI;
 
 use ndarray::Array2;
 
+use crate::math;
+
 /// A complex number in `f64`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Complex {
@@ -30,7 +32,7 @@ impl Complex {
 
     /// `e^{iθ}`.
     pub fn cis(theta: f64) -> Self {
-        Complex::new(theta.cos(), theta.sin())
+        Complex::new(math::cos(theta), math::sin(theta))
     }
 
     /// Complex conjugate.
@@ -297,7 +299,7 @@ mod tests {
 
     fn signal(n: usize) -> Vec<Complex> {
         (0..n)
-            .map(|i| Complex::new((i as f64 * 0.7).sin(), (i as f64 * 1.3).cos()))
+            .map(|i| Complex::new(math::sin(i as f64 * 0.7), math::cos(i as f64 * 1.3)))
             .collect()
     }
 

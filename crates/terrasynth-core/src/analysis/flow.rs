@@ -13,6 +13,7 @@ use ndarray::Array2;
 
 pub use super::common::D8_OFFSETS;
 use super::common::{dir_geometry, neighbour, row_areas, values};
+use crate::math;
 use crate::raster::CellSizes;
 use crate::simd::Isa;
 
@@ -235,7 +236,7 @@ fn mfd_shares(m: &Mfd<'_>, r: usize, c: usize, w: &mut [f64; 8]) -> bool {
         let drop = zi - m.z[nr * cols + nc] as f64;
         if drop > 0.0 {
             let t = drop / dist[d] * contour[d];
-            w[d] = t.powf(m.exponent);
+            w[d] = math::pow(t, m.exponent);
             total += w[d];
             lower += 1;
         }
@@ -322,7 +323,7 @@ pub fn flow_accumulation_mfd(filled: &Array2<f32>, cs: &CellSizes, exponent: f64
 
 /// `log10` of an upstream-area grid, as `f32` (for display and statistics).
 pub fn log_upstream_area(area: &Array2<f64>) -> Array2<f32> {
-    area.mapv(|a| a.log10() as f32)
+    area.mapv(|a| math::log10(a) as f32)
 }
 
 #[cfg(test)]
@@ -338,7 +339,7 @@ mod tests {
                 .map(|i| match i % 11 {
                     3 => f32::NAN,
                     5 => 1000.0,
-                    _ => 1000.0 + ((i as f32) * 0.731).sin() * 40.0,
+                    _ => 1000.0 + math::sinf((i as f32) * 0.731) * 40.0,
                 })
                 .collect();
             let there: Vec<f32> = (0..n)
@@ -346,7 +347,7 @@ mod tests {
                     2 => f32::NAN,
                     4 => here[i].next_down(),
                     5 => here[i],
-                    _ => 1000.0 + ((i as f32) * 1.37).cos() * 40.0,
+                    _ => 1000.0 + math::cosf((i as f32) * 1.37) * 40.0,
                 })
                 .collect();
             let start: Vec<f64> = (0..n).map(|i| [0.0, 0.1, 2.5][i % 3]).collect();

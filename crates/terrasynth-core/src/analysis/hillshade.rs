@@ -5,6 +5,7 @@
 use ndarray::Array2;
 
 use super::derivatives::gradient;
+use crate::math;
 use crate::raster::CellSizes;
 
 /// Default light azimuth, degrees clockwise from north (north-west light).
@@ -44,9 +45,9 @@ impl Light {
         let az = (azimuth_deg as f64).to_radians();
         let alt = (altitude_deg as f64).to_radians();
         Light {
-            east: az.sin() * alt.cos(),
-            north: az.cos() * alt.cos(),
-            up: alt.sin(),
+            east: math::sin(az) * math::cos(alt),
+            north: math::cos(az) * math::cos(alt),
+            up: math::sin(alt),
         }
     }
 

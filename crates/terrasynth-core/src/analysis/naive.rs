@@ -7,6 +7,7 @@
 use ndarray::Array2;
 
 use super::fft::{dft_naive, Complex};
+use crate::math;
 use crate::raster::CellSizes;
 
 /// Size of row `r` from `v`, with the same fallbacks as the fast code (last row reused, 1 m
@@ -406,7 +407,7 @@ fn mfd_fractions(
         if let Some((nr, nc, dist, contour)) = nb {
             let drop = filled[[r, c]] as f64 - filled[[nr, nc]] as f64;
             if drop > 0.0 {
-                let x = (drop / dist * contour).powf(p);
+                let x = math::pow(drop / dist * contour, p);
                 total += x;
                 count += 1;
                 w[k] = Some((nr, nc, x));
@@ -535,8 +536,9 @@ pub fn axis_anisotropy(z: &Array2<f32>) -> f64 {
         }
         *ck = det(&mk) / d;
     }
-    let hann =
-        |i: usize, n: usize| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+    let hann = |i: usize, n: usize| {
+        0.5 - 0.5 * math::cos(2.0 * std::f64::consts::PI * i as f64 / n as f64)
+    };
     let x = Array2::from_shape_fn((rows, cols), |(r, c)| {
         let plane = coef[0] + coef[1] * r as f64 + coef[2] * c as f64;
         Complex::new(
@@ -563,7 +565,7 @@ pub fn axis_anisotropy(z: &Array2<f32>) -> f64 {
             if !(0.25..0.5).contains(&radius) {
                 continue;
             }
-            let deg = fy.atan2(fx).to_degrees(); // (−180, 180]
+            let deg = math::atan2(fy, fx).to_degrees(); // (−180, 180]
             let off_axis = (deg - 90.0 * (deg / 90.0).round()).abs();
             let off_diag = (deg - 45.0 - 90.0 * ((deg - 45.0) / 90.0).round()).abs();
             let p = f[[r, c]].norm_sqr();

@@ -15,6 +15,7 @@ use super::common::{dir_geometry, row_areas};
 use super::fft::{fft2, Complex};
 use super::flow::{d8_receivers, flow_accumulation_from_receivers, D8_NONE};
 use super::{curvature, priority_flood_fill};
+use crate::math;
 use crate::raster::CellSizes;
 
 /// Half-width, degrees, of the wedges of [`axis_anisotropy`] around the pixel axes and the
@@ -49,7 +50,7 @@ pub fn detrended_hann(z: &Array2<f32>) -> Array2<f64> {
     let a = sum / n;
     let br = if rr > 0.0 { sum_r / rr } else { 0.0 };
     let bc = if ccs > 0.0 { sum_c / ccs } else { 0.0 };
-    let hann = |i: usize, n: usize| 0.5 - 0.5 * (2.0 * PI * i as f64 / n as f64).cos();
+    let hann = |i: usize, n: usize| 0.5 - 0.5 * math::cos(2.0 * PI * i as f64 / n as f64);
     let wr: Vec<f64> = (0..rows).map(|i| hann(i, rows)).collect();
     let wc: Vec<f64> = (0..cols).map(|i| hann(i, cols)).collect();
     Array2::from_shape_fn((rows, cols), |(r, c)| {
@@ -71,12 +72,12 @@ fn bin_freq(k: usize, n: usize) -> f64 {
 /// pixel axis, `Some(false)` within it of a diagonal, `None` elsewhere or outside the outer half
 /// of the radius (`0.25 ≤ |f| < 0.5` cycles per pixel).
 pub fn wedge_of(fx: f64, fy: f64, half_width: f64) -> Option<bool> {
-    let radius = fx.hypot(fy);
+    let radius = math::hypot(fx, fy);
     if !(0.25..0.5).contains(&radius) {
         return None;
     }
     // Angle folded into [0, π/2] and then distance to the nearest axis (0 or π/2) and to π/4.
-    let theta = fy.abs().atan2(fx.abs());
+    let theta = math::atan2(fy.abs(), fx.abs());
     let to_axis = theta.min(PI / 2.0 - theta);
     let to_diag = (theta - PI / 4.0).abs();
     if to_axis <= half_width {

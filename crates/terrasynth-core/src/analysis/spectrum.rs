@@ -5,11 +5,12 @@ use std::f64::consts::PI;
 use ndarray::Array2;
 
 use super::fft::{fft2, Complex};
+use crate::math;
 
 /// Periodic Hann window of length `n`: `0.5 − 0.5·cos(2πi/n)`.
 fn hann(n: usize) -> Vec<f64> {
     (0..n)
-        .map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / n as f64).cos())
+        .map(|i| 0.5 - 0.5 * math::cos(2.0 * PI * i as f64 / n as f64))
         .collect()
 }
 
@@ -121,8 +122,8 @@ mod tests {
                 let x = (v as f64 - mean) * wr[r] * wc[c];
                 let phase =
                     -2.0 * PI * ((kr * r) as f64 / rows as f64 + (kc * c) as f64 / cols as f64);
-                re += x * phase.cos();
-                im += x * phase.sin();
+                re += x * math::cos(phase);
+                im += x * math::sin(phase);
             }
             let (fy, fx) = (bin_freq(kr, rows), bin_freq(kc, cols));
             out.push(((fx * fx + fy * fy).sqrt(), re, im));

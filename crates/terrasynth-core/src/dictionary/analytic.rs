@@ -8,6 +8,7 @@
 //! point and the atom's seed, and evaluated with the quintic fade `6t⁵ − 15t⁴ + 10t³`.
 
 use super::rng::hash2;
+use crate::math;
 
 /// Which procedural atoms.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -45,7 +46,7 @@ pub fn perlin(x: f64, y: f64, seed: u64) -> f64 {
         // An angle from the hash: the gradient is a unit vector.
         let h = hash2(seed, gx, gy);
         let angle = (h >> 11) as f64 * (std::f64::consts::TAU / (1u64 << 53) as f64);
-        angle.cos() * dx + angle.sin() * dy
+        math::cos(angle) * dx + math::sin(angle) * dy
     };
     let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
     let (u, v) = (fade(fx), fade(fy));
@@ -75,7 +76,7 @@ pub fn analytic_atoms(kind: AnalyticKind, patch: usize, count: usize, seed: u64)
                         continue;
                     }
                     let s = seed ^ round.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-                    let (sin, cos) = theta.to_radians().sin_cos();
+                    let (sin, cos) = math::sincos(theta.to_radians());
                     let scale = 1.0 / (w * patch as f64);
                     // Offsets move the lattice so different rounds differ.
                     let (ox, oy) = ((s % 97) as f64 * 0.37, (s % 89) as f64 * 0.41);

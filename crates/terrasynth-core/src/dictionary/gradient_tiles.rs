@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use super::error::DictionaryError;
 use super::exemplar::PixelWindow;
+use crate::math;
 use crate::raster::boxfilter::{box2, reduce2x2};
 use crate::raster::Grid;
 
@@ -180,7 +181,7 @@ fn erf(x: f64) -> f64 {
         * (0.254_829_592
             + t * (-0.284_496_736
                 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
-    sign * (1.0 - poly * (-x * x).exp())
+    sign * (1.0 - poly * math::exp(-x * x))
 }
 
 /// The standard normal CDF `Φ`.
@@ -647,7 +648,7 @@ mod tests {
     fn shared_coarse_gradients_equal_the_per_pixel_ones_bit_for_bit() {
         let (rows, cols) = (23usize, 29usize);
         let data: Vec<f32> = (0..rows * cols)
-            .map(|i| ((i * 7919) % 113) as f32 * 1.37 - 40.0 + (i as f32).sin() * 3.0)
+            .map(|i| ((i * 7919) % 113) as f32 * 1.37 - 40.0 + math::sinf(i as f32) * 3.0)
             .collect();
         let p = ParentPlane {
             data: &data,

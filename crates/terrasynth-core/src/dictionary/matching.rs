@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use super::atoms::{Dictionary, LayerKind};
 use super::rng::hash2;
+use crate::math;
 use crate::simd::Isa;
 
 /// Slack added to the pruning bound so that float rounding of the full score can never make a
@@ -309,11 +310,11 @@ fn combine(
     let mut score = w.elevation * (0.5 * (1.0 + elev_dot));
     if w.altitude > 0.0 {
         let d = q.mean_alt - dict.mean_alt[i];
-        score += w.altitude * (-(d * d) * s.inv_alt2).exp();
+        score += w.altitude * math::expf(-(d * d) * s.inv_alt2);
     }
     if w.slope > 0.0 {
         let d = q.mean_slope - dict.mean_slope[i];
-        score += w.slope * (-(d * d) * s.inv_slope2).exp();
+        score += w.slope * math::expf(-(d * d) * s.inv_slope2);
     }
     for term in &w.layers {
         match term {

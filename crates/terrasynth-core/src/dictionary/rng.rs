@@ -6,6 +6,7 @@
 //! other points were evaluated or in what order. Nothing here uses a global generator, the clock or
 //! the platform: the same seed gives the same sequence everywhere.
 
+use crate::math;
 /// The golden-ratio increment of SplitMix64.
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 
@@ -74,7 +75,7 @@ impl Rng {
     pub fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.next_f64();
         let u2 = self.next_f64();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        (-2.0 * math::log(u1)).sqrt() * math::cos(std::f64::consts::TAU * u2)
     }
 
     /// `k` random unit-norm vectors of length `n` (Gaussian directions), row after row.

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::scatter::{ScatterRule, DEFAULT_INSTANCES_MIN_ZOOM};
 use super::LandscapeError;
+use crate::math;
 
 /// A smooth trapezoid weight curve: 0 outside `[min, max]`, 1 on `[min + falloff, max − falloff]`,
 /// and a smoothstep `t²(3 − 2t)` on the two falloff bands (the falloff is capped at half the
@@ -257,13 +258,13 @@ impl DrainageStyle {
     /// or NaN: transparent), its constants worked out once for a whole tile.
     pub fn alpha_ramp(&self) -> impl Fn(f32) -> u8 {
         let (min, floor) = (self.png_min_m2, self.png_min_opacity);
-        let (lo, hi) = (min.log10(), self.png_max_m2.log10());
+        let (lo, hi) = (math::log10(min), math::log10(self.png_max_m2));
         move |area_m2| {
             let area = f64::from(area_m2);
             if area.is_nan() || area < min {
                 return 0;
             }
-            let t = ((area.log10() - lo) / (hi - lo)).clamp(0.0, 1.0);
+            let t = ((math::log10(area) - lo) / (hi - lo)).clamp(0.0, 1.0);
             ((floor + (1.0 - floor) * t) * 255.0).round() as u8
         }
     }

@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{LandscapeConfig, LandscapeError};
 use crate::dictionary::rng::{hash2, mix64, to_unit_f64};
+use crate::math;
 
 /// How candidates are placed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -459,7 +460,7 @@ fn unit(h: u64, stream: u64) -> f64 {
 
 /// The number of Poisson(1) events a uniform draw `u` gives (inverse CDF, at most 8).
 fn poisson1(u: f64) -> u32 {
-    let mut p = (-1.0f64).exp();
+    let mut p = math::exp(-1.0f64);
     let mut cdf = p;
     let mut k = 0;
     while u >= cdf && k < 8 {
@@ -541,7 +542,10 @@ pub fn scatter(
                 for s in 0..rule.seeds {
                     let h = mix64(p.c.id ^ mix64(u64::from(g) << 32 | u64::from(s)));
                     let (rho, theta) = (r * unit(h, 5).sqrt(), std::f64::consts::TAU * unit(h, 6));
-                    let (x, y) = (p.c.x + rho * theta.cos(), p.c.y + rho * theta.sin());
+                    let (x, y) = (
+                        p.c.x + rho * math::cos(theta),
+                        p.c.y + rho * math::sin(theta),
+                    );
                     if x < qx0 || x >= qx1 || y < qy0 || y >= qy1 {
                         continue;
                     }
@@ -722,7 +726,8 @@ mod tests {
 
     #[test]
     fn a_rectangle_alone_is_the_same_window_of_a_larger_one() {
-        let dens = |c: i64, r: i64| ((c as f32 * 0.013).sin() * (r as f32 * 0.011).cos()).max(0.0);
+        let dens =
+            |c: i64, r: i64| (math::sinf(c as f32 * 0.013) * math::cosf(r as f32 * 0.011)).max(0.0);
         for m in [Method::JitteredGrid, Method::Collision, Method::Survival] {
             let r = rule(m);
             let big = run(&r, 1.5, [-300.0, 200.0, 468.0, 968.0], 7, dens);

@@ -20,6 +20,7 @@ use std::collections::{BinaryHeap, VecDeque};
 
 use ndarray::Array2;
 
+use crate::math;
 use crate::raster::CellSizes;
 
 use super::water::{neighbours, N8};
@@ -356,7 +357,7 @@ fn step(cells: &CellSizes, r: usize, dr: isize, dc: isize) -> f64 {
     let dx = 0.5 * (cells.dx[r] + cells.dx[other]);
     let dy = 0.5 * (cells.dy[r] + cells.dy[other]);
     match (dr != 0, dc != 0) {
-        (true, true) => dx.hypot(dy),
+        (true, true) => math::hypot(dx, dy),
         (true, false) => dy,
         _ => dx,
     }

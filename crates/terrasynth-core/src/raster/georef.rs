@@ -4,6 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::math;
+
 /// Mean Earth radius used for metric cell sizes in EPSG:4326 (metres).
 pub const EARTH_RADIUS_M: f64 = 6_371_008.8;
 /// The WGS84 semi-major axis, which is the sphere radius of Web Mercator (metres).
@@ -61,7 +63,7 @@ impl Crs {
             Crs::Epsg4326 => Some((x, y)),
             Crs::Epsg3857 => Some((
                 (x / MERCATOR_RADIUS_M).to_degrees(),
-                (2.0 * (y / MERCATOR_RADIUS_M).exp().atan() - std::f64::consts::FRAC_PI_2)
+                (2.0 * math::atan(math::exp(y / MERCATOR_RADIUS_M)) - std::f64::consts::FRAC_PI_2)
                     .to_degrees(),
             )),
             Crs::Projected(code) => super::projection::Projection::new(code)
@@ -179,9 +181,12 @@ impl Georef {
             Crs::Projected(_) => (self.pixel_width, self.pixel_height),
             Crs::Epsg4326 => {
                 let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
-                (self.pixel_width * k * lat.cos(), self.pixel_height * k)
+                (self.pixel_width * k * math::cos(lat), self.pixel_height * k)
             }
-            Crs::Epsg3857 => (self.pixel_width * lat.cos(), self.pixel_height * lat.cos()),
+            Crs::Epsg3857 => (
+                self.pixel_width * math::cos(lat),
+                self.pixel_height * math::cos(lat),
+            ),
         }
     }
 
@@ -256,7 +261,7 @@ mod tests {
         let (dx, dy) = g.cell_size_m(0.0);
         assert!((dy - 463.3).abs() < 1.0, "dy {dy}");
         assert!(
-            (dx - 463.3 * 41f64.to_radians().cos()).abs() < 1.0,
+            (dx - 463.3 * math::cos(41f64.to_radians())).abs() < 1.0,
             "dx {dx}"
         );
     }
@@ -272,7 +277,7 @@ mod tests {
         };
         let (dx2, _) = far.cell_size_m(0.0);
         let lat = far.latitude_of(5_000_000.0 - 50.0).to_radians();
-        assert!((dx2 - 100.0 * lat.cos()).abs() < 1e-6);
+        assert!((dx2 - 100.0 * math::cos(lat)).abs() < 1e-6);
         assert!(dx2 < 80.0);
     }
 }

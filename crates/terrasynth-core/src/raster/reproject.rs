@@ -11,6 +11,7 @@ use super::error::RasterError;
 use super::georef::{Crs, Georef, EARTH_RADIUS_M};
 use super::grid::Grid;
 use super::projection::Projection;
+use crate::math;
 
 /// Points sampled along each edge of the source to find the geographic bounding box.
 const EDGE_SAMPLES: usize = 64;
@@ -45,7 +46,7 @@ pub fn to_geographic(grid: &Grid) -> Result<Grid, RasterError> {
     let deg = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
     let mid = (0.5 * (lat0 + lat1)).to_radians();
     let ph = g.pixel_height / deg;
-    let pw = g.pixel_width / (deg * mid.cos().max(1e-6));
+    let pw = g.pixel_width / (deg * math::cos(mid).max(1e-6));
     let out_rows = ((lat1 - lat0) / ph).ceil().max(1.0);
     let out_cols = ((lon1 - lon0) / pw).ceil().max(1.0);
     let limit = (rows.max(cols) as f64) * 4.0;

@@ -3,6 +3,8 @@
 
 use ndarray::Array2;
 
+use crate::math;
+
 /// Keys' cubic convolution kernel with `a = −0.5` (Catmull-Rom).
 fn keys(t: f32) -> f32 {
     let a = -0.5f32;
@@ -113,7 +115,7 @@ pub fn fbm_upsample(a: &Array2<f32>, factor: usize, cell_m: f64, seed: u64) -> A
     }
     let fine = cell_m / factor as f64;
     let base = out.clone();
-    let octaves = (factor as f64).log2().round() as u32;
+    let octaves = math::log2(factor as f64).round() as u32;
     for r in 0..rows {
         for c in 0..cols {
             let (r0, r1) = (r.saturating_sub(1), (r + 1).min(rows - 1));

@@ -20,6 +20,7 @@ use ndarray::Array2;
 use rayon::prelude::*;
 
 use crate::dictionary::omp::{Omp, OmpScratch};
+use crate::math;
 
 /// A primitive while encoding: its quantised height and its code of `(atom index into the
 /// offered atoms, quantised coefficient)` pairs.
@@ -475,7 +476,7 @@ pub fn psnr_db(truth: &Array2<f32>, decoded: &Array2<f32>) -> f64 {
     if rmse == 0.0 {
         return f64::INFINITY;
     }
-    20.0 * (relief / rmse).log10()
+    20.0 * math::log10(relief / rmse)
 }
 
 #[cfg(test)]
@@ -523,7 +524,9 @@ mod tests {
     fn hills(rows: usize, cols: usize) -> Array2<f32> {
         Array2::from_shape_fn((rows, cols), |(r, c)| {
             let (x, y) = (c as f32, r as f32);
-            500.0 + 80.0 * (x * 0.21).sin() * (y * 0.13).cos() + 30.0 * (x * 0.07 + y * 0.05).sin()
+            500.0
+                + 80.0 * math::sinf(x * 0.21) * math::cosf(y * 0.13)
+                + 30.0 * math::sinf(x * 0.07 + y * 0.05)
         })
     }
 

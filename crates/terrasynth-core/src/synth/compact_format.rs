@@ -309,12 +309,13 @@ pub fn from_bytes(
 mod tests {
     use super::*;
     use crate::dictionary::analytic::{analytic_atoms, AnalyticKind};
+    use crate::math;
     use crate::synth::compact::compress;
     use ndarray::Array2;
 
     fn sample() -> (CompactTerrain, Vec<u8>) {
         let grid = Array2::from_shape_fn((30, 26), |(r, c)| {
-            200.0 + 40.0 * ((r as f32) * 0.3).sin() + 25.0 * ((c as f32) * 0.23).cos()
+            200.0 + 40.0 * math::sinf((r as f32) * 0.3) + 25.0 * math::cosf((c as f32) * 0.23)
         });
         let atoms = analytic_atoms(AnalyticKind::Ridged, 8, 20, 2);
         let t = compress(&grid, &atoms, 8, 2, 0.05, 1);

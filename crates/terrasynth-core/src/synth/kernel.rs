@@ -323,6 +323,7 @@ pub fn finest_octave_rms_n<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math;
 
     /// The formulas the constants were computed from, in `f64`.
     fn reference(kind: KernelKind) -> Vec<f64> {
@@ -330,7 +331,7 @@ mod tests {
             if x == 0.0 {
                 1.0
             } else {
-                (std::f64::consts::PI * x).sin() / (std::f64::consts::PI * x)
+                math::sin(std::f64::consts::PI * x) / (std::f64::consts::PI * x)
             }
         }
         fn i0(x: f64) -> f64 {

@@ -46,6 +46,7 @@ use crate::dictionary::matching::{
 };
 use crate::dictionary::omp::{Omp, OmpScratch};
 use crate::dictionary::{Dictionary, LayerKind};
+use crate::math;
 use crate::raster::boxfilter::box2;
 use crate::simd::Isa;
 
@@ -650,7 +651,7 @@ impl Amplifier {
         let octave_match = self.levers.octave_match;
         let diversity = self.levers.diversity.max(1) as usize;
         let diversity_tol = self.levers.diversity_tol;
-        let floor = self.levers.floor_m * (parent_cell_m / 2000.0).max(0.0).powf(0.7);
+        let floor = self.levers.floor_m * math::powf((parent_cell_m / 2000.0).max(0.0), 0.7);
         // The primitives go in groups of `DOT_BATCH`, whose queries' dot products are computed
         // in one pass over the atoms (`Matcher::prepare_batch`); each primitive is then matched
         // on its own, as it would be alone.
@@ -1807,7 +1808,7 @@ mod tests {
             .iter()
             .enumerate()
             {
-                let v = (fx * x + fy * y + seed * (k as f64 + 1.0)).sin();
+                let v = math::sin(fx * x + fy * y + seed * (k as f64 + 1.0));
                 h += amp * (1.0 - 2.0 * v.abs());
             }
             h as f32

@@ -7,6 +7,7 @@ use terrasynth_core::dictionary::{
     box_down2, build, build_cancellable, from_bytes, read_dictionary, to_bytes, write_dictionary,
     BuildOptions, Dictionary, DictionaryError, Exemplar, LayerKind, Learning, Rng,
 };
+use terrasynth_core::math;
 
 /// Sum of sinusoids plus two straight ridges and a valley, metres; independent of the code under
 /// test.
@@ -14,12 +15,12 @@ fn terrain(rows: usize, cols: usize) -> Array2<f32> {
     Array2::from_shape_fn((rows, cols), |(r, c)| {
         let (y, x) = (r as f64, c as f64);
         let mut z = 800.0
-            + 150.0 * (y / 23.0).sin() * (x / 31.0).cos()
-            + 40.0 * ((x + 2.0 * y) / 9.0).sin();
-        z += 120.0 * (-((x - 0.6 * y - 20.0) / 6.0).powi(2)).exp();
-        z += 90.0 * (-((x + 0.3 * y - 140.0) / 4.0).powi(2)).exp();
-        z -= 70.0 * (-((y - 0.2 * x - 50.0) / 5.0).powi(2)).exp();
-        z += 7.0 * (x * 1.7).sin() * (y * 1.3).cos();
+            + 150.0 * math::sin(y / 23.0) * math::cos(x / 31.0)
+            + 40.0 * math::sin((x + 2.0 * y) / 9.0);
+        z += 120.0 * math::exp(-((x - 0.6 * y - 20.0) / 6.0).powi(2));
+        z += 90.0 * math::exp(-((x + 0.3 * y - 140.0) / 4.0).powi(2));
+        z -= 70.0 * math::exp(-((y - 0.2 * x - 50.0) / 5.0).powi(2));
+        z += 7.0 * math::sin(x * 1.7) * math::cos(y * 1.3);
         z as f32
     })
 }

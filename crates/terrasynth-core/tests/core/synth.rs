@@ -6,6 +6,7 @@ use proptest::prelude::*;
 use std::sync::Arc;
 
 use terrasynth_core::dictionary::{Dictionary, MatchWeights};
+use terrasynth_core::math;
 use terrasynth_core::synth::{
     amplify_chain, Amplifier, ClampedRaster, Field, KernelKind, Levers, SynthError, Window,
 };
@@ -447,7 +448,7 @@ fn layered_parent(dict: &Dictionary, base: &Array2<f32>, w: Window) -> Field {
                 let layer = Array2::from_shape_fn((w.rows, w.cols), |(r, c)| {
                     let x = (w.col0 + c as i64) as f32 * 0.05 + k as f32;
                     let y = (w.row0 + r as i64) as f32 * 0.07;
-                    0.5 + 0.5 * (x.sin() * y.cos())
+                    0.5 + 0.5 * (math::sinf(x) * math::cosf(y))
                 });
                 (info.name.clone(), layer)
             })

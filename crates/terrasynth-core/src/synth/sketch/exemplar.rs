@@ -7,6 +7,7 @@
 use ndarray::Array2;
 
 use crate::analysis::ppa::{features, FeatureKind, Features, NodeClass, PpaParams};
+use crate::math;
 use crate::raster::Grid;
 
 use super::distance::{distance_transform, DistanceMap};
@@ -394,7 +395,7 @@ fn feature_points(
             .map(|&f| {
                 let e = walk(i, f);
                 let (er, ec) = ((e / cols) as f64, (e % cols) as f64);
-                (er - r as f64).atan2(ec - c as f64)
+                math::atan2(er - r as f64, ec - c as f64)
             })
             .collect();
         let height = f64::from(z[[r, c]]);
@@ -402,7 +403,8 @@ fn feature_points(
         // Across a path: the normal of its arms' mean direction; elsewhere: all around.
         let around: Vec<f64> = match arms.as_slice() {
             [a, b] => {
-                let t = (a.sin() - b.sin()).atan2(a.cos() - b.cos()) + std::f64::consts::FRAC_PI_2;
+                let t = math::atan2(math::sin(*a) - math::sin(*b), math::cos(*a) - math::cos(*b))
+                    + std::f64::consts::FRAC_PI_2;
                 vec![t, t + std::f64::consts::PI]
             }
             _ => (0..8)
@@ -414,8 +416,8 @@ fn feature_points(
             .map(|t| {
                 bilinear(
                     z,
-                    x + STRENGTH_REACH * t.cos(),
-                    y + STRENGTH_REACH * t.sin(),
+                    x + STRENGTH_REACH * math::cos(*t),
+                    y + STRENGTH_REACH * math::sin(*t),
                 )
             })
             .sum::<f64>()

@@ -6,6 +6,7 @@
 use serde_json::{json, Map, Value};
 
 use crate::analysis::ppa::{FeatureKind, FeatureTree, NodeClass};
+use crate::math;
 use crate::raster::{Crs, Georef};
 
 use super::geometry::{check_lines, OutputGrid, Sketch};
@@ -148,7 +149,7 @@ pub fn lonlat(crs: Crs, x: f64, y: f64) -> [f64; 2] {
             let r = crate::raster::georef::MERCATOR_RADIUS_M;
             [
                 (x / r).to_degrees(),
-                (2.0 * (y / r).exp().atan() - std::f64::consts::FRAC_PI_2).to_degrees(),
+                (2.0 * math::atan(math::exp(y / r)) - std::f64::consts::FRAC_PI_2).to_degrees(),
             ]
         }
         Crs::Projected(_) => crs

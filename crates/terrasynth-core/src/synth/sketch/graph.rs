@@ -11,6 +11,7 @@
 use std::collections::VecDeque;
 
 use crate::analysis::ppa::{break_polygons, paths, reduce_branches, FeatureKind, NodeClass};
+use crate::math;
 
 use super::geometry::{dist, Sketch};
 
@@ -263,7 +264,7 @@ pub fn sketch_trees(sketch: &Sketch, spacing: usize) -> SketchTrees {
                         .map(|&first| {
                             let end = walk(&adj, i, first, 5);
                             let (a, b) = (pos(i), pos(end));
-                            (b[1] - a[1]).atan2(b[0] - a[0])
+                            math::atan2(b[1] - a[1], b[0] - a[0])
                         })
                         .collect();
                     Centre {

@@ -38,6 +38,7 @@ pub mod quality;
 pub mod ssd;
 pub mod tps;
 
+use crate::math;
 use ndarray::Array2;
 use thiserror::Error;
 
@@ -165,7 +166,7 @@ fn jitter(seed: u64, a: usize, b: usize) -> f64 {
 /// The linear map of a hypothesis: output offsets → exemplar offsets, rotating the sketch's arm
 /// `a_s` onto the exemplar's arm `a_e`, mirrored across that arm when `mirror`.
 fn arm_map(a_s: f64, a_e: f64, mirror: bool) -> [[f64; 2]; 2] {
-    let rot = |t: f64| [[t.cos(), -t.sin()], [t.sin(), t.cos()]];
+    let rot = |t: f64| [[math::cos(t), -math::sin(t)], [math::sin(t), math::cos(t)]];
     let mul = |a: [[f64; 2]; 2], b: [[f64; 2]; 2]| {
         [
             [
@@ -385,8 +386,8 @@ impl FeatureStage<'_> {
         for k in 0..16 {
             let t = k as f64 / 16.0 * std::f64::consts::TAU;
             let p = [
-                c.pos[0] + half * 1.3 * t.cos(),
-                c.pos[1] + half * 1.3 * t.sin(),
+                c.pos[0] + half * 1.3 * math::cos(t),
+                c.pos[1] + half * 1.3 * math::sin(t),
             ];
             from.push(p);
             to.push(to_ex(p));
@@ -791,7 +792,7 @@ fn guide_field(
                 if site == usize::MAX {
                     continue;
                 }
-                let w = (-(m.dist[i] / sigma).powi(2)).exp();
+                let w = math::exp(-(m.dist[i] / sigma).powi(2));
                 num += w * heights[site];
                 den += w;
             }

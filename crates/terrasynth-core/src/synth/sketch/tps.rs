@@ -5,12 +5,13 @@
 //! `(n + 3)²` system is solved by Gaussian elimination with partial pivoting in `f64`
 //! ([`solve`]), deterministic and exact to rounding.
 
+use crate::math;
 /// `U(r) = r² log r` from `r²` (`0` at `r = 0`).
 fn radial(r2: f64) -> f64 {
     if r2 <= 0.0 {
         0.0
     } else {
-        0.5 * r2 * r2.ln()
+        0.5 * r2 * math::log(r2)
     }
 }
 
