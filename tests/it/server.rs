@@ -108,7 +108,9 @@ async fn elevation_tiles_in_every_format() {
 
 /// The ETag is the first 16 bytes, in hex, of SHA-256 over the world's fingerprint (and, for
 /// instance tiles, its scatter fingerprint) and `|{kind:?}|z|x|y`: computed here the plain way, it
-/// must equal what the server's precomputed hash states give, so ETags clients hold stay valid.
+/// must equal what the server's precomputed hash states give, so ETags clients hold stay valid
+/// for as long as the world and the tiles' revision (`TILE_BYTES_REVISION`, in the fingerprint)
+/// do.
 #[test]
 fn etags_equal_the_plain_hash_of_world_and_request() {
     use sha2::{Digest, Sha256};

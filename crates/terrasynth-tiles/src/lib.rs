@@ -69,4 +69,4 @@ pub use request::{
 };
 pub use resample::mercator_window_from_grid;
 pub use tilejson::{TerrainEncoding, TileJson, VectorLayer, DEFAULT_ATTRIBUTION, TILEJSON_VERSION};
-pub use world::{MemoryPlan, World, WorldParts, WorldStats};
+pub use world::{MemoryPlan, World, WorldParts, WorldStats, TILE_BYTES_REVISION};

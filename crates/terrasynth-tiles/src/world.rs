@@ -229,6 +229,17 @@ fn band_amplifier(
     })
 }
 
+/// The revision of what tiles hold, for a given world and request: hashed into every world's
+/// fingerprint and so into every tile's ETag, so that a client or cache holding a tile of an
+/// earlier revision never has it confirmed by a 304. Raised with every change of the code that
+/// alters the bytes of a tile (the amplifier, a layer, an encoder). The committed tile-hash list
+/// is pinned to it (`tests/it/tile_hashes.rs`): a change that rewrites the list fails that test
+/// until this is raised.
+///
+/// Revision 1 is the first with a revision: tiles computed with the same transcendental
+/// functions on every machine (`terrasynth_core::math`).
+pub const TILE_BYTES_REVISION: u32 = 1;
+
 /// Hex SHA-256 of everything that determines a world's tiles.
 fn fingerprint(
     parts: &WorldParts,
@@ -240,6 +251,7 @@ fn fingerprint(
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(format!("|tiles r{TILE_BYTES_REVISION}").as_bytes());
     h.update(format!(
         "|{:?}|{}|{}|{}|{}|{:?}|",
         parts.base.georef,
