@@ -3,9 +3,10 @@
 //!
 //! The standard library's `f64::sin`, `exp`, `atan`, `ln`, `powf`… call the platform's C library,
 //! and glibc picks the build of each function per CPU when the process starts. On x86-64 its FMA
-//! builds of `atan`, `atan2`, `exp`, `sin`, `cos`, `tan`, `pow`, `log` and `log10` give another
-//! last bit than its SSE2 builds for about one argument in 1,500 to 3,000 (README, *Tests*,
-//! "the same bits on every machine"); on other architectures the C library is other code again.
+//! builds of `atan`, `atan2`, `exp`, `sin`, `cos`, `tan`, `pow`, `log`, `log10` and `log2` give
+//! another last bit than its SSE2 builds for up to one argument in 1,450
+//! (`scripts/libm_builds.sh`; README, *Tests*, "The same bits on every machine"); on other
+//! architectures and systems the C library is other code again.
 //! A tile is a pure function of its world and its address, whatever the CPU (ARCHITECTURE,
 //! *Deterministic*), so the code that computes tiles takes these functions from here instead: the
 //! `libm` crate, musl's libm in plain Rust — IEEE 754 additions, multiplications and divisions in
