@@ -8,6 +8,11 @@
 #   - the same for a `--tile-format webp` export against the served `{y}.webp` tiles;
 #   - opens the MBTiles archives with Python's sqlite3: metadata (name, format, bounds, center,
 #     minzoom, maxzoom) and every tile (TMS row) equal to the served bytes;
+#   - vector tiles (`--tile-format mvt`: contours at zooms 8–10 over the box, instances at zoom 14
+#     over a corner of it) in both formats: MVT with gzip tile compression (PMTiles header;
+#     MBTiles `format` pbf), `vector_layers` in the metadata (MBTiles: its `json` row), every tile
+#     equal to the gzip-coded bytes the server sends a client that accepts gzip, and, decompressed
+#     by Python's gzip, to the served `.mvt` bytes;
 #   - exports two shards and joins them with `export merge`: the same tiles as the whole export;
 #   - kills an export (SIGKILL) while it runs: no file with the output's name is left;
 #   - the whole-world layers end up stored in the shared store (landscape/), which later exports
@@ -65,6 +70,30 @@ export_to pmtiles "$OUT/webp.pmtiles" --tile-format webp
 # Leaf directories forced by a small root (the default keeps this export's root in 16 KiB).
 "$BIN" export --world tienshan --bbox "$BBOX" --zooms "$ZOOMS" --layers elevation \
     --format pmtiles --output "$OUT/leaves.pmtiles" --max-root-bytes 120 >/dev/null
+# Vector tiles: contours over the box, instances (from zoom 14) over its north-east corner.
+VBOX=72.57,42.57,72.6,42.6
+for format in pmtiles mbtiles; do
+    "$BIN" export --world tienshan --bbox "$BBOX" --zooms 8-10 --layers contours \
+        --format "$format" --tile-format mvt --output "$OUT/contours.$format" >/dev/null
+    "$BIN" export --world tienshan --bbox "$VBOX" --zooms 14 --layers instances \
+        --format "$format" --tile-format mvt --output "$OUT/instances.$format" >/dev/null
+done
+# Refused before anything is written, with the reason named: instances above their first zoom, a
+# vector layer as PNG, a raster layer as MVT.
+refused() { # EXPECTED-MESSAGE export-args...
+    local want=$1 err
+    shift
+    if err=$("$BIN" export --world tienshan --bbox "$VBOX" --format pmtiles \
+        --output "$OUT/refused.pmtiles" "$@" 2>&1 >/dev/null); then
+        die "export $* succeeded"
+    fi
+    grep -qF "$want" <<<"$err" || die "export $*: \"$want\" not in: $err"
+    [[ ! -e "$OUT/refused.pmtiles" ]] || die "export $* left an archive"
+}
+refused "instance tiles start at zoom 14 (zoom 12 asked)" --zooms 12-14 --layers instances --tile-format mvt
+refused "(a vector layer: --tile-format mvt)" --zooms 14 --layers instances
+refused "(--tile-format mvt is for instances and contours)" --zooms 10 --layers elevation --tile-format mvt
+echo "export_test: vector exports refused where they do not apply, with the reason"
 # Two shards of the elevation layer, joined (parts given in any order).
 for i in 1 2; do
     for format in pmtiles mbtiles; do
@@ -75,12 +104,12 @@ done
 "$BIN" export merge --output "$OUT/merged-elevation.pmtiles" "$OUT/part2.pmtiles" "$OUT/part1.pmtiles"
 "$BIN" export merge --output "$OUT/merged-elevation.mbtiles" "$OUT/part1.mbtiles" "$OUT/part2.mbtiles"
 
-"$VENV/bin/python" - "$OUT" "http://127.0.0.1:$PORT" "$BBOX" "$ZOOMS" <<'PY'
-import json, math, sqlite3, sys, urllib.request
+"$VENV/bin/python" - "$OUT" "http://127.0.0.1:$PORT" "$BBOX" "$ZOOMS" "$VBOX" <<'PY'
+import gzip, json, math, sqlite3, sys, urllib.request
 from pmtiles.reader import Reader, MmapSource, all_tiles
 from pmtiles.tile import TileType, Compression
 
-out, base, bbox, zooms = sys.argv[1:5]
+out, base, bbox, zooms, vbox = sys.argv[1:6]
 w, s, e, n = map(float, bbox.split(","))
 z0, z1 = map(int, zooms.split("-"))
 served = {}
@@ -93,7 +122,17 @@ def serve(layer, z, x, y, ext="png"):
             served[key] = r.read()
     return served[key]
 
-def expected(z):
+def serve_coded(layer, z, x, y):
+    """The vector tile as sent gzip-coded, and as sent to a client that does not accept gzip."""
+    url = f"{base}/tiles/tienshan/{layer}/{z}/{x}/{y}.mvt"
+    with urllib.request.urlopen(urllib.request.Request(url, headers={"Accept-Encoding": "gzip"})) as r:
+        assert r.status == 200 and r.headers["Content-Encoding"] == "gzip", (url, dict(r.headers))
+        coded = r.read()
+    with urllib.request.urlopen(url) as r:
+        assert r.status == 200 and r.headers.get("Content-Encoding") is None, (url, dict(r.headers))
+        return coded, r.read()
+
+def expected(z, w=w, s=s, e=e, n=n):
     """The tiles of the box at zoom z (the default world covers the whole box)."""
     def tx(lon): return (lon + 180) / 360 * 2**z
     def ty(lat):
@@ -169,6 +208,35 @@ for layer in ("elevation", "color"):
         for (z, x, y), data in got.items():
             assert data == serve(layer, z, x, y), f"mbtiles {layer} {z}/{x}/{y} differs"
             checked += 1
+# Vector tiles: gzip-compressed MVT, the bytes the server sends gzip-coded.
+vw, vs, ve, vn = map(float, vbox.split(","))
+vector = {
+    "contours": set().union(*(expected(z) for z in range(8, 11))),
+    "instances": expected(14, vw, vs, ve, vn),
+}
+for layer, want_v in vector.items():
+    with open(f"{out}/{layer}.pmtiles", "rb") as f:
+        r = Reader(MmapSource(f))
+        h = r.header()
+        assert h["tile_type"] == TileType.MVT, h
+        assert h["tile_compression"] == Compression.GZIP, h
+        meta = r.metadata()
+        assert meta["format"] == "pbf", meta
+        ids = [l["id"] for l in meta["vector_layers"]]
+        pm = {k: v for k, v in all_tiles(r.get_bytes)}
+    db = sqlite3.connect(f"{out}/{layer}.mbtiles")
+    mmeta = dict(db.execute("SELECT name, value FROM metadata"))
+    assert mmeta["format"] == "pbf", mmeta
+    assert [l["id"] for l in json.loads(mmeta["json"])["vector_layers"]] == ids, mmeta
+    rows = db.execute("SELECT zoom_level, tile_column, tile_row, tile_data FROM tiles").fetchall()
+    mb = {(z, x, (1 << z) - 1 - row): data for z, x, row, data in rows}
+    assert set(pm) == want_v and set(mb) == want_v, (layer, sorted(set(pm) ^ want_v)[:5])
+    assert ids == (["contours"] if layer == "contours" else ["trees", "grass", "rocks"]), ids
+    for key, data in pm.items():
+        coded, plain = serve_coded(layer, *key)
+        assert data == coded and mb[key] == coded, f"{layer} {key} differs from the served gzip bytes"
+        assert gzip.decompress(data) == plain, f"{layer} {key} decompresses to other bytes"
+        checked += 2
 print(f"export_test: {len(want)} tiles per layer; {checked} archive tiles equal the served bytes; "
       f"PMTiles read by pmtiles {__import__('importlib.metadata').metadata.version('pmtiles')}, "
       f"MBTiles by sqlite {sqlite3.sqlite_version}")

@@ -301,7 +301,8 @@ struct ExportCli {
     /// The archive to write.
     #[arg(long, value_name = "FILE", required = true)]
     output: Option<PathBuf>,
-    /// Tile format (as served at `{y}.png` or `{y}.webp`).
+    /// Tile format (as served at `{y}.png`, `{y}.webp`, or `{y}.mvt` gzip-compressed for the
+    /// vector layers `instances` and `contours`).
     #[arg(long, value_enum, default_value = "png")]
     tile_format: TileFormat,
     /// Write only part I of N (numbered from 1) of the tiles; `export merge` joins the parts.

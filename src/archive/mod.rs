@@ -54,15 +54,33 @@ pub enum TileFormat {
     Png,
     /// Lossless WebP, as served at `{y}.webp`.
     Webp,
+    /// Mapbox Vector Tiles 2.1 (instances, contours), gzip-compressed: the bytes served at
+    /// `{y}.mvt` to a client that accepts gzip.
+    Mvt,
 }
 
 impl TileFormat {
-    /// The file extension of the served tiles (and the MBTiles `format`).
+    /// The file extension of the served tiles.
     pub fn extension(self) -> &'static str {
         match self {
             TileFormat::Png => "png",
             TileFormat::Webp => "webp",
+            TileFormat::Mvt => "mvt",
         }
+    }
+
+    /// The metadata's `format` (MBTiles 1.3 names vector tiles `pbf`).
+    pub fn metadata_format(self) -> &'static str {
+        match self {
+            TileFormat::Mvt => "pbf",
+            other => other.extension(),
+        }
+    }
+
+    /// Whether the archive's tiles are gzip-compressed (vector tiles; PNG and WebP are
+    /// compressed by their formats).
+    pub fn gzipped(self) -> bool {
+        self == TileFormat::Mvt
     }
 }
 

@@ -13,9 +13,6 @@ use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
-use flate2::read::GzDecoder;
-use flate2::write::GzEncoder;
-use flate2::Compression;
 use sha2::{Digest, Sha256};
 
 use super::{io_error, temporary_path, ArchiveError, TileFormat};
@@ -26,14 +23,24 @@ pub const HEADER_LEN: usize = 127;
 pub const ROOT_LIMIT: usize = 16_384;
 /// Internal (directory and metadata) compression: gzip.
 const COMPRESSION_GZIP: u8 = 2;
-/// Tile compression: none (PNG and WebP are compressed already).
+/// Tile compression of PNG and WebP: none (their formats compress them).
 const COMPRESSION_NONE: u8 = 1;
 
 /// The PMTiles `tile_type` of a tile format.
 fn tile_type(format: TileFormat) -> u8 {
     match format {
+        TileFormat::Mvt => 1,
         TileFormat::Png => 2,
         TileFormat::Webp => 4,
+    }
+}
+
+/// The PMTiles `tile_compression` of a tile format.
+fn tile_compression(format: TileFormat) -> u8 {
+    if format.gzipped() {
+        COMPRESSION_GZIP
+    } else {
+        COMPRESSION_NONE
     }
 }
 
@@ -127,19 +134,16 @@ fn read_varint(bytes: &[u8], pos: &mut usize) -> Result<u64, ArchiveError> {
     ))
 }
 
+/// `bytes` gzip-compressed, with the fixed settings of every gzip terrasynth writes
+/// ([`terrasynth_tiles::gzip`]).
 fn gzip(bytes: &[u8]) -> Vec<u8> {
-    let mut e = GzEncoder::new(Vec::new(), Compression::default());
-    // Writing to a Vec cannot fail.
-    let _ = e.write_all(bytes);
-    e.finish().unwrap_or_default()
+    // Compressing into memory cannot fail.
+    terrasynth_tiles::gzip(bytes).unwrap_or_default()
 }
 
 fn gunzip(bytes: &[u8]) -> Result<Vec<u8>, ArchiveError> {
-    let mut out = Vec::new();
-    GzDecoder::new(bytes)
-        .read_to_end(&mut out)
-        .map_err(|e| ArchiveError::Format(format!("PMTiles: corrupt gzip section: {e}")))?;
-    Ok(out)
+    terrasynth_tiles::gunzip(bytes)
+        .map_err(|e| ArchiveError::Format(format!("PMTiles: corrupt gzip section: {e}")))
 }
 
 /// A directory serialised (columns of varints) and gzip-compressed.
@@ -383,7 +387,7 @@ impl Writer {
         }
         h.push(1); // clustered
         h.push(COMPRESSION_GZIP);
-        h.push(COMPRESSION_NONE);
+        h.push(tile_compression(info.format));
         h.push(tile_type(info.format));
         h.push(info.min_zoom);
         h.push(info.max_zoom);
@@ -477,14 +481,21 @@ impl Reader {
     /// The header's tile format, zooms, bounds and centre.
     pub fn info(&self) -> Result<HeaderInfo, ArchiveError> {
         let format = match self.header[99] {
+            1 => TileFormat::Mvt,
             2 => TileFormat::Png,
             4 => TileFormat::Webp,
             t => {
                 return Err(ArchiveError::Format(format!(
-                    "PMTiles tile type {t} is neither PNG nor WebP"
+                    "PMTiles tile type {t} is none of MVT, PNG and WebP"
                 )))
             }
         };
+        if self.header[98] != tile_compression(format) {
+            return Err(ArchiveError::Format(format!(
+                "PMTiles tile compression {} is not what terrasynth writes for tile type {}",
+                self.header[98], self.header[99]
+            )));
+        }
         Ok(HeaderInfo {
             format,
             min_zoom: self.header[100],
@@ -704,5 +715,33 @@ mod tests {
             }
         }
         assert_eq!(got, tiles);
+    }
+
+    /// Vector tiles: tile type 1 (MVT) with gzip tile compression in the header (PMTiles v3
+    /// §3.4: bytes 98 and 99), read back as such; a header whose compression does not go with
+    /// its type is refused.
+    #[test]
+    fn vector_tile_archives_say_mvt_and_gzip() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut w = Writer::new(dir.path()).unwrap();
+        w.add(0, &gzip(b"an MVT")).unwrap();
+        let info = HeaderInfo {
+            format: TileFormat::Mvt,
+            min_zoom: 0,
+            max_zoom: 0,
+            bounds: [71.5, 42.1, 73.5, 42.7],
+            center: [72.5, 42.4, 0.0],
+        };
+        let out = dir.path().join("v.pmtiles");
+        w.finish(&out, &info, &serde_json::json!({}), 1_000_000)
+            .unwrap();
+        let r = Reader::open(&out).unwrap();
+        assert_eq!((r.header()[98], r.header()[99]), (2, 1));
+        assert_eq!(r.info().unwrap().format, TileFormat::Mvt);
+        let mut bytes = std::fs::read(&out).unwrap();
+        bytes[98] = COMPRESSION_NONE;
+        std::fs::write(&out, &bytes).unwrap();
+        let err = Reader::open(&out).and_then(|r| r.info()).unwrap_err();
+        assert!(err.to_string().contains("tile compression"), "{err}");
     }
 }

@@ -10,7 +10,7 @@ use axum::http::HeaderValue;
 use moka::sync::Cache;
 use tokio::sync::Semaphore;
 
-use terrasynth_tiles::{run_cancellable, CancelToken, Flights, World};
+use terrasynth_tiles::{run_cancellable, CancelToken, Flights, TileError, World};
 
 use super::admin::Admin;
 use super::error::{ServerError, StartupError};
@@ -123,7 +123,7 @@ pub struct Shared {
     pub live: LiveWorlds,
     /// The admin API and catalogue (`None`: no store, catalogue empty, admin routes absent).
     pub admin: Option<Arc<Admin>>,
-    /// Encoded tiles by ETag, weighed in bytes.
+    /// Encoded tiles (and gzip-coded features) by ETag, weighed in bytes.
     pub tile_bytes: Cache<String, Bytes>,
     /// Encoded tiles being computed, by ETag: concurrent requests for one tile wait for one
     /// computation, which stops when all of them have left.
@@ -224,6 +224,36 @@ impl AppState {
         })
         .await
         .map_err(|e| ServerError::Internal(e.to_string()))?
+    }
+
+    /// The bytes cached under `key` (an answer's strong ETag), or computed by `encode` through
+    /// [`Self::compute`] — once for all the requests that want them at the same time — and
+    /// cached. The async runtime only looks the cache up.
+    pub async fn cached_bytes(
+        &self,
+        key: &str,
+        encode: impl FnOnce() -> Result<Vec<u8>, TileError> + Send + 'static,
+    ) -> Result<Bytes, ServerError> {
+        if let Some(b) = self.tile_bytes.get(key) {
+            return Ok(b);
+        }
+        let key = key.to_string();
+        let cache = self.tile_bytes.clone();
+        let flights = self.tile_flights.clone();
+        self.compute(move || {
+            flights
+                .run(
+                    key.clone(),
+                    // A flight that ended since the lookup above may have cached it.
+                    || match cache.get(&key) {
+                        Some(b) => Ok(b),
+                        None => encode().map(Bytes::from),
+                    },
+                    |b| cache.insert(key.clone(), b.clone()),
+                )
+                .map_err(ServerError::Tile)
+        })
+        .await
     }
 
     /// World `name` of this request's snapshot, or 404.

@@ -4,16 +4,21 @@
 //! encoded tiles from the byte cache, and computes a miss on the blocking pool behind a bounded
 //! queue (full → 503), never on an async runtime thread. The computation runs under a
 //! cancellation token the handler's future holds: when the client leaves or the deadline passes,
-//! the synthesis stops unless another request still waits for it.
+//! the synthesis stops unless another request still waits for it. Vector and GeoJSON tiles go
+//! out gzip-coded to clients that accept it ([`super::encoding`]), compressed with the tile's
+//! computation and cached compressed.
 
-use axum::body::{Body, Bytes};
+use axum::body::Body;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
 
-use terrasynth_tiles::{check_against_world, etag, parse_request, query_map, render, RequestError};
+use terrasynth_tiles::{
+    check_against_world, etag, gzip, parse_request, query_map, render, RequestError,
+};
 
+use super::encoding::Coding;
 use super::error::{Problem, ServerError};
 use super::state::AppState;
 
@@ -70,7 +75,7 @@ fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
         ("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")
     ),
     responses(
-        (status = 200, description = "The tile; strong `ETag`, `Cache-Control` from the configuration",
+        (status = 200, description = "The tile; strong `ETag`, `Cache-Control` from the configuration. Vector (`.mvt`) and GeoJSON tiles are gzip-coded (`Content-Encoding: gzip`, an ETag of their own ending `-gzip\"`) when the request's `Accept-Encoding` takes gzip, and carry `Vary: Accept-Encoding`",
             content(("image/png"), ("image/x-exr"), ("application/vnd.mapbox-vector-tile"), ("application/geo+json"))),
         (status = 304, description = "Not modified (the `If-None-Match` ETag matches)"),
         (status = 400, description = "Malformed or non-canonical coordinates (sign, leading zeros, percent-encoding), unknown or repeated parameters, parameters that do not apply to the format, a contour interval that is not positive or too dense", body = Problem, content_type = "application/problem+json"),
@@ -92,7 +97,20 @@ pub async fn tile(
     let req = parse_request(world_name, layer, z, x, y_ext, &query)?;
     check_against_world(&world, &req)?;
     world.check_tile(req.z, req.x, req.y)?;
-    let tag = etag(&world, &req);
+    // The representation served: its coding, and the strong ETag (also the cache key) of the
+    // bytes in that coding.
+    let coding = if req.kind.compressible() {
+        Some(Coding::negotiate(&headers))
+    } else {
+        None
+    };
+    let (tag, other_tag) = match coding {
+        Some(c) => {
+            let identity = etag(&world, &req);
+            (c.etag(&identity), Some(c.other().etag(&identity)))
+        }
+        None => (etag(&world, &req), None),
+    };
     let cache_control = state.cache_control.clone();
     let respond = |status: StatusCode, body: Body| -> Response {
         let mut resp = (status, body).into_response();
@@ -101,35 +119,27 @@ pub async fn tile(
             h.insert(header::ETAG, v);
         }
         h.insert(header::CACHE_CONTROL, cache_control.clone());
+        if let Some(c) = coding {
+            c.mark(h);
+        }
         resp
     };
     if etag_matches(&headers, &tag) {
         return Ok(respond(StatusCode::NOT_MODIFIED, Body::empty()));
     }
     let content_type = HeaderValue::from_static(req.kind.content_type());
-    let bytes = match state.tile_bytes.get(&tag) {
-        Some(b) => b,
-        None => {
-            let cache = state.tile_bytes.clone();
-            let flights = state.tile_flights.clone();
-            let key = tag.clone();
-            state
-                .compute(move || {
-                    flights
-                        .run(
-                            key.clone(),
-                            // A flight that ended since the lookup above may have cached it.
-                            || match cache.get(&key) {
-                                Some(b) => Ok(b),
-                                None => render(&world, &req).map(Bytes::from),
-                            },
-                            |b| cache.insert(key.clone(), b.clone()),
-                        )
-                        .map_err(ServerError::Tile)
-                })
-                .await?
-        }
-    };
+    let other_coding = other_tag.map(|t| (state.tile_bytes.clone(), t));
+    let bytes = state
+        .cached_bytes(&tag, move || {
+            // The other coding of the tile, when cached, is recoded instead of computing it.
+            let other = other_coding.and_then(|(cache, t)| cache.get(&t));
+            match (coding, other) {
+                (Some(c), Some(other)) => c.from_other(&other),
+                (Some(Coding::Gzip), None) => gzip(&render(&world, &req)?),
+                _ => render(&world, &req),
+            }
+        })
+        .await?;
     let mut resp = respond(StatusCode::OK, Body::from(bytes));
     resp.headers_mut()
         .insert(header::CONTENT_TYPE, content_type);

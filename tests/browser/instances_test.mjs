@@ -2,7 +2,7 @@
 // the instances layers of the world's style at zooms 15 and 16 over spruce forest and steppe east
 // of the Ala-Archa (74.75°E, 42.66°N), with the colour map under them.
 // usage: node tests/browser/instances_test.mjs --url http://127.0.0.1:PORT --out DIR [--chromium PATH]
-// Checks: instance tiles answered 200 with the MVT type, rendered features with the MVT's
+// Checks: instance tiles answered 200 with the MVT type, gzip-coded, rendered features with the MVT's
 // properties (species, height_m, radius_m, rotation_deg, age), more than one species, no console
 // error. Writes DIR/instances-z16.png (the README picture).
 
@@ -43,7 +43,8 @@ try {
   page.on('pageerror', (e) => fail(`uncaught exception: ${e.message}`));
   page.on('response', (r) => {
     if (r.url().includes('/instances/') && r.url().endsWith('.mvt')) {
-      mvt.push({ url: r.url(), status: r.status(), type: r.headers()['content-type'] });
+      const h = r.headers();
+      mvt.push({ url: r.url(), status: r.status(), type: h['content-type'], coding: h['content-encoding'] });
     }
   });
   await page.goto(`${base}/`, { waitUntil: 'load' });
@@ -83,6 +84,9 @@ try {
   if (mvt.length === 0) fail('no instance tile was requested');
   if (bad.length) fail(`instance tiles failed: ${JSON.stringify(bad.slice(0, 3))}`);
   if (mvt.some((r) => r.status === 200 && r.type !== 'application/vnd.mapbox-vector-tile')) fail('wrong content type');
+  // The browser accepts gzip: the tiles it rendered came gzip-coded.
+  const plain = mvt.filter((r) => r.status === 200 && r.coding !== 'gzip');
+  if (plain.length) fail(`instance tiles not gzip-coded: ${JSON.stringify(plain.slice(0, 3))}`);
 } finally {
   await context.close();
 }

@@ -247,8 +247,30 @@ fn default_world_instance_tiles_are_deterministic_and_stand_on_the_served_ground
         fetch(&a, "/tiles/tienshan/instances/15/23187/12082.mvt?set=1").0,
         400
     );
+    // The vector and GeoJSON tiles gzip-coded for clients that accept it (the GeoJSON shrinks
+    // most), the same bytes from both processes.
+    let coded: Vec<Vec<u8>> = paths[..2]
+        .iter()
+        .zip(&first)
+        .map(|(p, identity)| crate::support::check_gzip_coding(&a, p, identity))
+        .collect();
+    assert!(
+        coded[1].len() * 4 < first[1].len(),
+        "GeoJSON {} → {}",
+        first[1].len(),
+        coded[1].len()
+    );
     drop(a);
+    // The second process is asked for the gzip-coded tiles first: compressed as they are
+    // computed, where the first process compressed the identity bytes it had cached.
     let b = start(store.path());
+    for (p, want) in paths[..2].iter().zip(&coded) {
+        let gz = proc::get_with(&b, p, &[("Accept-Encoding", "gzip")]);
+        assert!(
+            gz.body == *want,
+            "{p}: the gzip-coded tile differs between processes"
+        );
+    }
     for (p, want) in paths.iter().zip(&first) {
         let (status, body) = fetch(&b, p);
         assert_eq!(status, 200, "{p}");

@@ -87,3 +87,62 @@ pub fn decode_rgba(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
     buf.truncate(info.buffer_size());
     (info.height as usize, info.width as usize, buf)
 }
+
+/// The gzip-coded representation of `path` on `server`, whose identity bytes are `identity`,
+/// checked as a client and a shared cache see it: gzip-coded when `Accept-Encoding` takes gzip
+/// (and only then), the same bytes once decoded (by flate2's decoder, not the server's code),
+/// smaller, a strong ETag of its own that answers 304, and `Vary: Accept-Encoding` on both
+/// representations. Returns the gzip bytes.
+pub fn check_gzip_coding(server: &Server, path: &str, identity: &[u8]) -> Vec<u8> {
+    use std::io::Read;
+    let plain = proc::get_with(server, path, &[]);
+    assert_eq!(plain.status, 200, "{path}");
+    assert!(plain.body == identity, "{path}: identity bytes");
+    assert_eq!(plain.header("content-encoding"), "", "{path}");
+    assert!(plain.header("vary").contains("accept-encoding"), "{path}");
+    let gz = proc::get_with(server, path, &[("Accept-Encoding", "gzip, deflate, br")]);
+    assert_eq!(gz.status, 200, "{path}");
+    assert_eq!(gz.header("content-encoding"), "gzip", "{path}");
+    assert!(gz.header("vary").contains("accept-encoding"), "{path}");
+    let mut decoded = Vec::new();
+    flate2::read::GzDecoder::new(&gz.body[..])
+        .read_to_end(&mut decoded)
+        .expect("a gzip stream");
+    assert!(decoded == identity, "{path}: gzip decodes to other bytes");
+    assert!(
+        gz.body.len() < identity.len(),
+        "{path}: {} gzip bytes from {}",
+        gz.body.len(),
+        identity.len()
+    );
+    let (tag, gz_tag) = (plain.header("etag"), gz.header("etag"));
+    assert_eq!(
+        gz_tag,
+        format!("{}-gzip\"", tag.trim_end_matches('"')),
+        "{path}"
+    );
+    let again = proc::get_with(
+        server,
+        path,
+        &[("Accept-Encoding", "gzip"), ("If-None-Match", gz_tag)],
+    );
+    assert_eq!(again.status, 304, "{path}");
+    assert_eq!(again.header("etag"), gz_tag, "{path}");
+    assert!(again.body.is_empty());
+    // The identity tag names another representation: the gzip one is sent.
+    let other = proc::get_with(
+        server,
+        path,
+        &[("Accept-Encoding", "gzip"), ("If-None-Match", tag)],
+    );
+    assert_eq!(other.status, 200, "{path}");
+    assert!(
+        other.body == gz.body,
+        "{path}: gzip bytes differ between requests"
+    );
+    // Refused with weight 0, gzip is not sent.
+    let refused = proc::get_with(server, path, &[("Accept-Encoding", "gzip;q=0, identity")]);
+    assert_eq!(refused.header("content-encoding"), "", "{path}");
+    assert!(refused.body == identity, "{path}");
+    gz.body
+}

@@ -128,6 +128,51 @@ pub fn get(server: &Server, path: &str, token: Option<&str>) -> (u16, Vec<u8>) {
     finish(r.call())
 }
 
+/// An answer with its headers (names lowercase; a repeated header's values joined by `, `).
+pub struct Answer {
+    /// The status code.
+    pub status: u16,
+    /// The headers by lowercase name.
+    pub headers: std::collections::BTreeMap<String, String>,
+    /// The body as sent (a `Content-Encoding` is not undone).
+    pub body: Vec<u8>,
+}
+
+impl Answer {
+    /// Header `name` (lowercase), or "" when absent.
+    pub fn header(&self, name: &str) -> &str {
+        self.headers.get(name).map_or("", String::as_str)
+    }
+}
+
+/// `GET path` with the request headers `headers`, answered with its headers.
+pub fn get_with(server: &Server, path: &str, headers: &[(&str, &str)]) -> Answer {
+    let mut r = ureq::get(&format!("{}{path}", server.base))
+        .config()
+        .http_status_as_error(false)
+        .build();
+    for (k, v) in headers {
+        r = r.header(*k, *v);
+    }
+    let resp = r.call().expect("request");
+    let mut out = std::collections::BTreeMap::<String, String>::new();
+    for (k, v) in resp.headers() {
+        let v = String::from_utf8_lossy(v.as_bytes()).into_owned();
+        out.entry(k.as_str().to_string())
+            .and_modify(|s| {
+                s.push_str(", ");
+                s.push_str(&v);
+            })
+            .or_insert(v);
+    }
+    let (status, body) = finish(Ok(resp));
+    Answer {
+        status,
+        headers: out,
+        body,
+    }
+}
+
 /// `POST path` with a body of `content_type` and a bearer token.
 pub fn post(
     server: &Server,

@@ -54,7 +54,7 @@ pub use controls::{ControlMode, SpeciesControl, SpeciesControls};
 pub use encode::{
     decode_float_exr, decode_mapbox_png, decode_terrarium_png, encode_float_exr, encode_gray_png,
     encode_mapbox_png, encode_mapbox_webp, encode_rgba_png, encode_rgba_webp, encode_terrarium_png,
-    encode_terrarium_webp, NAN_FILL_HEIGHT_M,
+    encode_terrarium_webp, gunzip, gzip, NAN_FILL_HEIGHT_M,
 };
 pub use error::TileError;
 pub use extent::Extent;

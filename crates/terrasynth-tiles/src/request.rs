@@ -114,6 +114,13 @@ pub enum TileKind {
 }
 
 impl TileKind {
+    /// Whether the tile's format leaves its bytes uncompressed, so that they are worth a
+    /// transfer coding ([`crate::gzip`]): the vector tiles (MVT) and GeoJSON. PNG, WebP and EXR
+    /// (ZIP) are compressed by their formats already.
+    pub fn compressible(&self) -> bool {
+        matches!(self, TileKind::Instances { .. } | TileKind::Contours { .. })
+    }
+
     /// The `Content-Type` of the tile bytes.
     pub fn content_type(&self) -> &'static str {
         match self {

@@ -5,7 +5,8 @@
 //!
 //! Tiles are produced by the tiles crate's [`render`](fn@terrasynth_tiles::render) from requests parsed by [`parse_request`]
 //! from the same path the server serves (`{layer}/{z}/{x}/{y}.{ext}` without query), so an
-//! exported tile is byte-identical to the served one. Tiles are rendered in parallel in chunks
+//! exported tile is byte-identical to the served one (vector tiles, `--tile-format mvt`: to the
+//! gzip-coded one the server sends a client that accepts gzip, [`terrasynth_tiles::gzip`]). Tiles are rendered in parallel in chunks
 //! (on plain threads, `on_threads`; their kernels use rayon's pool) and written in PMTiles
 //! tile-id (Hilbert) order; shard `I` of `N` takes the `I`-th of `N` equal consecutive slices of
 //! that order, so that a merge is a concatenation. Archives are
@@ -22,8 +23,9 @@ use std::time::Instant;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
+use terrasynth_tiles::style::{self, tilejson_of};
 use terrasynth_tiles::{
-    check_against_world, parse_request, render, tile_range_for_bounds, TileRequest, World,
+    check_against_world, gzip, parse_request, render, tile_range_for_bounds, TileRequest, World,
 };
 
 use super::CliError;
@@ -244,7 +246,15 @@ fn request(
         &format!("{}.{}", t.2, format.extension()),
         &HashMap::new(),
     )
-    .map_err(|e| CliError::Usage(format!("layer `{layer}`: {e}")))?;
+    .map_err(|e| {
+        let vector = [style::INSTANCES, style::CONTOURS].contains(&layer);
+        let hint = match (vector, format) {
+            (true, TileFormat::Png | TileFormat::Webp) => " (a vector layer: --tile-format mvt)",
+            (false, TileFormat::Mvt) => " (--tile-format mvt is for instances and contours)",
+            _ => "",
+        };
+        CliError::Usage(format!("layer `{layer}`: {e}{hint}"))
+    })?;
     check_against_world(world, &req).map_err(|e| CliError::Usage(e.to_string()))?;
     Ok(req)
 }
@@ -262,7 +272,7 @@ fn metadata(
         "name": format!("{} {layer}", world.name()),
         "description": world.title(),
         "attribution": world.attribution(),
-        "format": format.extension(),
+        "format": format.metadata_format(),
         "type": if layer == "elevation" || layer == "color" { "baselayer" } else { "overlay" },
         "version": "1",
         "minzoom": zooms.0,
@@ -274,17 +284,28 @@ fn metadata(
     if layer == "elevation" {
         m["encoding"] = "terrarium".into();
     }
+    // Vector tiles name their layers and fields (the TileJSON's `vector_layers`, which MBTiles
+    // 1.3 and PMTiles v3 ask for).
+    if format == TileFormat::Mvt {
+        if let Some(layers) = tilejson_of(world, "", layer).and_then(|tj| tj.vector_layers) {
+            m["vector_layers"] = serde_json::to_value(layers).unwrap_or_default();
+        }
+    }
     m
 }
 
 /// MBTiles metadata rows: strings as they are, numbers as text, `bounds` and `center` as the
-/// comma-separated lists the specification asks for.
+/// comma-separated lists the specification asks for, `vector_layers` in the `json` row (as
+/// `{"vector_layers": [...]}`).
 fn mbtiles_rows(m: &serde_json::Value) -> Vec<(String, String)> {
     let Some(obj) = m.as_object() else {
         return Vec::new();
     };
     obj.iter()
         .map(|(k, v)| {
+            if k == "vector_layers" {
+                return ("json".to_string(), serde_json::json!({ k: v }).to_string());
+            }
             let text = match v {
                 serde_json::Value::String(s) => s.clone(),
                 serde_json::Value::Array(a) => a
@@ -323,9 +344,10 @@ pub fn run(
         args.bbox[3].min(wb[3]),
     ];
     let tiles = plan(world, args.bbox, args.zooms, args.shard)?;
-    // Check every layer before rendering anything.
+    // Check every layer before rendering anything (at the first zoom: instance tiles start at
+    // the world's `instances_min_zoom`).
     for layer in &args.layers {
-        request(world, layer, args.tile_format, (0, 0, 0))?;
+        request(world, layer, args.tile_format, (args.zooms.0, 0, 0))?;
     }
     let center = [
         (bounds[0] + bounds[2]) / 2.0,
@@ -367,7 +389,12 @@ pub fn run(
         for part in tiles.chunks(chunk) {
             let rendered: Vec<Result<Vec<u8>, CliError>> = on_threads(part, threads, |t| {
                 let req = request(world, layer, args.tile_format, (t.z, t.x, t.y))?;
-                Ok(render(world, &req)?)
+                let bytes = render(world, &req)?;
+                Ok(if args.tile_format.gzipped() {
+                    gzip(&bytes)?
+                } else {
+                    bytes
+                })
             });
             for (t, bytes) in part.iter().zip(rendered) {
                 let bytes = bytes?;
@@ -528,5 +555,16 @@ mod tests {
         assert!(rows.contains(&("bounds".into(), "1.5,2.0,3.0,4.0".into())));
         assert!(rows.contains(&("minzoom".into(), "0".into())));
         assert!(rows.contains(&("name".into(), "w".into())));
+    }
+
+    #[test]
+    fn mbtiles_rows_put_vector_layers_in_the_json_row() {
+        let m = serde_json::json!({"format": "pbf", "vector_layers": [{"id": "contours"}]});
+        let rows = mbtiles_rows(&m);
+        assert!(rows.contains(&("format".into(), "pbf".into())));
+        let json = rows.iter().find(|(k, _)| k == "json").map(|(_, v)| v);
+        let v: serde_json::Value = serde_json::from_str(json.expect("a json row")).unwrap();
+        assert_eq!(v["vector_layers"][0]["id"], "contours");
+        assert!(!rows.iter().any(|(k, _)| k == "vector_layers"));
     }
 }
