@@ -2,14 +2,18 @@
 //! page works wherever the binary runs), and MapLibre GL JS served from the npm install
 //! (`web_vendor_dir`, by default `node_modules/maplibre-gl/dist` as `scripts/install_web.sh`
 //! leaves it). No request leaves for a CDN; without the install the page loads and says how to
-//! install MapLibre.
+//! install MapLibre. MapLibre's files go out gzip-coded to clients that accept it, compressed
+//! once ([`super::encoding`]).
 
 use std::path::Path as FsPath;
 
+use axum::body::Bytes;
 use axum::extract::{Path, State};
-use axum::http::{header, HeaderValue};
+use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::{IntoResponse, Response};
+use terrasynth_tiles::gzip;
 
+use super::encoding::Coding;
 use super::error::{Problem, ServerError};
 use super::state::AppState;
 
@@ -98,26 +102,63 @@ pub async fn vendor_dir(configured: &FsPath) -> std::path::PathBuf {
 #[utoipa::path(get, path = "/vendor/maplibre-gl/{file}", tag = "web", operation_id = "web_vendor",
     params(("file" = String, Path, description = "A plain `.js`, `.mjs`, `.css` or `.map` file name")),
     responses(
-        (status = 200, description = "The file", content(("text/javascript"), ("text/css"), ("application/json"))),
+        (status = 200, description = "The file; gzip-coded (`Content-Encoding: gzip`, `Vary: Accept-Encoding`) when the request's `Accept-Encoding` takes gzip", content(("text/javascript"), ("text/css"), ("application/json"))),
         (status = 404, description = "Not a served name, or not installed", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn vendor(
     State(state): State<AppState>,
     Path(file): Path<String>,
+    headers: HeaderMap,
 ) -> Result<Response, ServerError> {
     let content_type = vendor_content_type(&file)
         .ok_or_else(|| ServerError::NotFound(format!("no vendor file `{file}`")))?;
     let dir = vendor_dir(&state.config.web_vendor_dir).await;
-    let bytes = tokio::fs::read(dir.join(&file)).await.map_err(|_| {
+    let path = dir.join(&file);
+    let not_installed = move || {
         ServerError::NotFound(format!(
             "`{file}` is not in {}: run scripts/install_web.sh to install MapLibre GL JS",
             dir.display()
         ))
-    })?;
+    };
+    let coding = Coding::negotiate(&headers);
+    let bytes: Bytes = match coding {
+        Coding::Identity => tokio::fs::read(&path)
+            .await
+            .map_err(|_| not_installed())?
+            .into(),
+        // Compressed once on the blocking pool and cached with the tiles, by the file's length
+        // and modification time (a new install is read again); the compression layer would
+        // compress the megabyte of MapLibre GL JS at every request on a runtime thread.
+        Coding::Gzip => {
+            let meta = tokio::fs::metadata(&path)
+                .await
+                .map_err(|_| not_installed())?;
+            let key = format!(
+                "vendor|{}|{}|{:?}",
+                path.display(),
+                meta.len(),
+                meta.modified().ok()
+            );
+            match state.tile_bytes.get(&key) {
+                Some(b) => b,
+                None => {
+                    let coded = tokio::task::spawn_blocking(move || {
+                        let raw = std::fs::read(&path).map_err(|_| not_installed())?;
+                        Ok::<_, ServerError>(Bytes::from(gzip(&raw)?))
+                    })
+                    .await
+                    .map_err(|e| ServerError::Internal(e.to_string()))??;
+                    state.tile_bytes.insert(key, coded.clone());
+                    coded
+                }
+            }
+        }
+    };
     let mut resp = bytes.into_response();
     let h = resp.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
     h.insert(header::CACHE_CONTROL, state.cache_control.clone());
+    coding.mark(h);
     Ok(resp)
 }
 

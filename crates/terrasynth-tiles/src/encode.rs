@@ -49,8 +49,8 @@ const GZIP_LEVEL: u32 = 6;
 pub const GUNZIP_MAX_BYTES: u64 = 256 << 20;
 
 /// `bytes` as one gzip member (RFC 1952) with fixed settings — no file name, no comment,
-/// modification time 0, operating system 255 (unknown), zlib-rs deflate at [`GZIP_LEVEL`] — so
-/// the same bytes always give the same output on every machine.
+/// modification time 0, operating system 255 (unknown), zlib-rs deflate at level 6
+/// (`GZIP_LEVEL`) — so the same bytes always give the same output on every machine.
 pub fn gzip(bytes: &[u8]) -> Result<Vec<u8>, TileError> {
     let out = Vec::with_capacity(bytes.len() / 3 + 64);
     let mut enc = flate2::GzBuilder::new()
