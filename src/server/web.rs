@@ -128,7 +128,9 @@ pub async fn vendor(
             .into(),
         // Compressed once on the blocking pool and cached with the tiles, by the file's length
         // and modification time (a new install is read again); the compression layer would
-        // compress the megabyte of MapLibre GL JS at every request on a runtime thread.
+        // compress the megabyte of MapLibre GL JS at every request on a runtime thread. Not
+        // through `AppState::cached_bytes`: the page's script must not wait for, or be refused
+        // by, the synthesis queue.
         Coding::Gzip => {
             let meta = tokio::fs::metadata(&path)
                 .await

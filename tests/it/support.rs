@@ -94,7 +94,6 @@ pub fn decode_rgba(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
 /// smaller, a strong ETag of its own that answers 304, and `Vary: Accept-Encoding` on both
 /// representations. Returns the gzip bytes.
 pub fn check_gzip_coding(server: &Server, path: &str, identity: &[u8]) -> Vec<u8> {
-    use std::io::Read;
     let plain = proc::get_with(server, path, &[]);
     assert_eq!(plain.status, 200, "{path}");
     assert!(plain.body == identity, "{path}: identity bytes");
@@ -104,11 +103,10 @@ pub fn check_gzip_coding(server: &Server, path: &str, identity: &[u8]) -> Vec<u8
     assert_eq!(gz.status, 200, "{path}");
     assert_eq!(gz.header("content-encoding"), "gzip", "{path}");
     assert!(gz.header("vary").contains("accept-encoding"), "{path}");
-    let mut decoded = Vec::new();
-    flate2::read::GzDecoder::new(&gz.body[..])
-        .read_to_end(&mut decoded)
-        .expect("a gzip stream");
-    assert!(decoded == identity, "{path}: gzip decodes to other bytes");
+    assert!(
+        gunzip(&gz.body) == identity,
+        "{path}: gzip decodes to other bytes"
+    );
     assert!(
         gz.body.len() < identity.len(),
         "{path}: {} gzip bytes from {}",
@@ -145,4 +143,23 @@ pub fn check_gzip_coding(server: &Server, path: &str, identity: &[u8]) -> Vec<u8
     assert_eq!(refused.header("content-encoding"), "", "{path}");
     assert!(refused.body == identity, "{path}");
     gz.body
+}
+
+/// `gz` decoded by flate2's decoder (not the server's code).
+pub fn gunzip(gz: &[u8]) -> Vec<u8> {
+    let mut decoded = Vec::new();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(gz), &mut decoded)
+        .expect("a gzip stream");
+    decoded
+}
+
+/// The body of an in-process answer that must be gzip-coded (`Content-Encoding: gzip`, `Vary:
+/// Accept-Encoding`), decoded by [`gunzip`].
+pub fn gzip_coded_body(headers: &HeaderMap, body: &[u8]) -> Vec<u8> {
+    assert_eq!(headers[axum::http::header::CONTENT_ENCODING], "gzip");
+    assert!(headers[axum::http::header::VARY]
+        .to_str()
+        .unwrap()
+        .contains("accept-encoding"));
+    gunzip(body)
 }
