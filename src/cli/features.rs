@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use super::error::CliError;
 use terrasynth_core::analysis::ppa::{self, DrainageAgreement, FeatureTree, PpaParams};
 use terrasynth_core::raster::{read_raster_file, ReadLimits};
-use terrasynth_core::synth::sketch::geojson::features_geojson;
+use terrasynth_core::synth::sketch::geojson::write_features_geojson;
 
 /// Which trees to write.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -59,8 +59,9 @@ pub fn run(args: &FeaturesArgs) -> Result<FeaturesSummary, CliError> {
     if args.kinds != Kinds::Ridge {
         trees.push(&features.valleys);
     }
-    let json = features_geojson(&trees, &grid.georef);
-    let bytes = serde_json::to_vec(&json).map_err(|e| CliError::Usage(e.to_string()))?;
+    let mut bytes = Vec::new();
+    write_features_geojson(&trees, &grid.georef, &mut bytes)
+        .map_err(|e| CliError::Usage(e.to_string()))?;
     std::fs::write(&args.output, bytes).map_err(|source| CliError::Io {
         path: args.output.display().to_string(),
         source,

@@ -13,7 +13,7 @@ use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
 use terrasynth_core::analysis::ppa::FeatureTree;
-use terrasynth_core::synth::sketch::geojson::features_geojson;
+use terrasynth_core::synth::sketch::geojson::write_features_geojson;
 use terrasynth_tiles::{gzip, TileError, World};
 
 use super::encoding::Coding;
@@ -135,6 +135,8 @@ fn features_json(world: &World, kinds: Kinds) -> Result<Vec<u8>, TileError> {
     if kinds != Kinds::Ridge {
         trees.push(&f.valleys);
     }
-    let json = features_geojson(&trees, &world.base_georef());
-    serde_json::to_vec(&json).map_err(|e| TileError::Encode(format!("features GeoJSON: {e}")))
+    let mut json = Vec::new();
+    write_features_geojson(&trees, &world.base_georef(), &mut json)
+        .map_err(|e| TileError::Encode(format!("features GeoJSON: {e}")))?;
+    Ok(json)
 }

@@ -205,24 +205,8 @@ pub fn oriented(z: &Array2<f32>, kind: FeatureKind) -> Vec<f32> {
 /// The four profile directions `(row step, column step)`: east, south, south-east, south-west.
 pub const PROFILE_DIRECTIONS: [(isize, isize); 4] = [(0, 1), (1, 0), (1, 1), (1, -1)];
 
-/// Row-major cell indices of the line through a `rows × cols` grid that starts at `(r, c)` and
-/// steps by `(dr, dc)` until it leaves the grid.
-fn line(rows: usize, cols: usize, mut r: usize, mut c: usize, dr: isize, dc: isize) -> Vec<usize> {
-    let mut out = Vec::new();
-    loop {
-        out.push(r * cols + c);
-        match (r.checked_add_signed(dr), c.checked_add_signed(dc)) {
-            (Some(nr), Some(nc)) if nr < rows && nc < cols => {
-                r = nr;
-                c = nc;
-            }
-            _ => return out,
-        }
-    }
-}
-
-/// Every line of direction `(dr, dc)` through the grid, each as its cell indices in order.
-pub(crate) fn lines(rows: usize, cols: usize, dr: isize, dc: isize) -> Vec<Vec<usize>> {
+/// The start cell of every line of direction `(dr, dc)` through a `rows × cols` grid, in order.
+fn line_starts(rows: usize, cols: usize, dr: isize, dc: isize) -> Vec<(usize, usize)> {
     if rows == 0 || cols == 0 {
         return Vec::new();
     }
@@ -242,9 +226,28 @@ pub(crate) fn lines(rows: usize, cols: usize, dr: isize, dc: isize) -> Vec<Vec<u
         }
     }
     starts
-        .into_iter()
-        .map(|(r, c)| line(rows, cols, r, c, dr, dc))
-        .collect()
+}
+
+/// Writes into `out` the row-major cell indices of the line through a `rows × cols` grid that
+/// starts at `(r, c)` and steps by `(dr, dc)` until it leaves the grid.
+fn line_into(
+    rows: usize,
+    cols: usize,
+    (mut r, mut c): (usize, usize),
+    (dr, dc): (isize, isize),
+    out: &mut Vec<usize>,
+) {
+    out.clear();
+    loop {
+        out.push(r * cols + c);
+        match (r.checked_add_signed(dr), c.checked_add_signed(dc)) {
+            (Some(nr), Some(nc)) if nr < rows && nc < cols => {
+                r = nr;
+                c = nc;
+            }
+            _ => return,
+        }
+    }
 }
 
 /// Minimum over each window of `w` values *after* position `i` (`v[i+1..=i+w]`, clipped to the
@@ -301,11 +304,17 @@ pub fn candidates(z: &[f32], rows: usize, cols: usize, params: &PpaParams) -> Ve
     }
     let w = params.window;
     let drop = params.min_drop.max(0.0);
+    // One line at a time, its buffers reused: a world's base has thousands of lines, and all
+    // of one direction's cell indices at once would take 8 bytes a cell.
+    let (mut cells, mut v, mut rev) = (Vec::new(), Vec::new(), Vec::new());
     for &(dr, dc) in &PROFILE_DIRECTIONS {
-        for cells in lines(rows, cols, dr, dc) {
-            let v: Vec<f32> = cells.iter().map(|&i| z[i]).collect();
+        for start in line_starts(rows, cols, dr, dc) {
+            line_into(rows, cols, start, (dr, dc), &mut cells);
+            v.clear();
+            v.extend(cells.iter().map(|&i| z[i]));
             let ahead = forward_window_min(&v, w);
-            let rev: Vec<f32> = v.iter().rev().copied().collect();
+            rev.clear();
+            rev.extend(v.iter().rev().copied());
             let mut behind = forward_window_min(&rev, w);
             behind.reverse();
             for (k, &i) in cells.iter().enumerate() {
@@ -405,15 +414,13 @@ impl UnionFind {
 }
 
 /// Polygon breaking: the maximum spanning forest of `segments` under [`segment_order`] (Kruskal),
-/// as sorted `(a, b)` pairs. `n` is the number of cells.
-pub fn break_polygons(n: usize, segments: &[(f64, usize, usize)]) -> Vec<(usize, usize)> {
-    let mut order: Vec<&(f64, usize, usize)> = segments
-        .iter()
-        .filter(|s| s.1 < n && s.2 < n && s.1 != s.2)
-        .collect();
-    order.sort_unstable_by(|a, b| segment_order(a, b));
+/// as sorted `(a, b)` pairs. `n` is the number of cells. Takes the segments by value and sorts
+/// them in place: a world's base has millions.
+pub fn break_polygons(n: usize, mut segments: Vec<(f64, usize, usize)>) -> Vec<(usize, usize)> {
+    segments.retain(|s| s.1 < n && s.2 < n && s.1 != s.2);
+    segments.sort_unstable_by(segment_order);
     let mut uf = UnionFind::new(n);
-    let mut kept: Vec<(usize, usize)> = order
+    let mut kept: Vec<(usize, usize)> = segments
         .into_iter()
         .filter(|s| uf.union(s.1, s.2))
         .map(|s| (s.1.min(s.2), s.1.max(s.2)))
@@ -422,101 +429,182 @@ pub fn break_polygons(n: usize, segments: &[(f64, usize, usize)]) -> Vec<(usize,
     kept
 }
 
-/// Adjacency lists of a forest on `n` cells, each sorted.
-fn adjacency(n: usize, edges: &[(usize, usize)]) -> Vec<Vec<usize>> {
-    let mut adj = vec![Vec::new(); n];
-    for &(a, b) in edges {
-        adj[a].push(b);
-        adj[b].push(a);
+/// The adjacency of a graph on `n` cells in compressed rows: the neighbours of cell `i` are
+/// `neighbours[offsets[i]..offsets[i + 1]]`, sorted (ties, from repeated edges, by edge), each
+/// with the index in the edge list of the edge that joins them. Three flat arrays instead of a
+/// vector per cell: a world's base has millions of cells.
+struct Adjacency {
+    offsets: Vec<usize>,
+    neighbours: Vec<usize>,
+    edge_of: Vec<usize>,
+}
+
+impl Adjacency {
+    fn new(n: usize, edges: &[(usize, usize)]) -> Adjacency {
+        let mut offsets = vec![0usize; n + 1];
+        for &(a, b) in edges {
+            offsets[a + 1] += 1;
+            offsets[b + 1] += 1;
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut neighbours = vec![0usize; offsets[n]];
+        let mut edge_of = vec![0usize; offsets[n]];
+        {
+            let mut next = offsets.clone();
+            for (k, &(a, b)) in edges.iter().enumerate() {
+                for (from, to) in [(a, b), (b, a)] {
+                    neighbours[next[from]] = to;
+                    edge_of[next[from]] = k;
+                    next[from] += 1;
+                }
+            }
+        }
+        // Each cell's entries (at most 8 on a grid of 8-adjacent cells) sorted by (neighbour,
+        // edge): an insertion sort of both arrays.
+        for i in 0..n {
+            for j in offsets[i] + 1..offsets[i + 1] {
+                let mut k = j;
+                while k > offsets[i]
+                    && (neighbours[k - 1], edge_of[k - 1]) > (neighbours[k], edge_of[k])
+                {
+                    neighbours.swap(k - 1, k);
+                    edge_of.swap(k - 1, k);
+                    k -= 1;
+                }
+            }
+        }
+        Adjacency {
+            offsets,
+            neighbours,
+            edge_of,
+        }
     }
-    for l in &mut adj {
-        l.sort_unstable();
+
+    /// The slots of cell `i`'s neighbours.
+    fn slots(&self, i: usize) -> std::ops::Range<usize> {
+        self.offsets[i]..self.offsets[i + 1]
     }
-    adj
+
+    /// Cell `i`'s neighbours, sorted.
+    fn of(&self, i: usize) -> &[usize] {
+        &self.neighbours[self.slots(i)]
+    }
 }
 
 /// Branch reduction: passes that remove every end branch shorter than `min_branch` cells (the
 /// cells from an end point up to, not including, the first branch point) and every tree with
 /// fewer than `min_branch` cells, until a pass removes nothing. Each pass decides from the
 /// forest as it was at the start of the pass, so the result does not depend on visiting order.
+/// Returns the edges left, sorted and without repeats.
+///
+/// One adjacency for all passes, with a flag per edge for the ones removed;
+/// [`naive::reduce_branches`](super::ppa_naive::reduce_branches) rebuilds the forest at every
+/// pass instead, and property tests compare the two.
 pub fn reduce_branches(
     n: usize,
     edges: &[(usize, usize)],
     min_branch: usize,
 ) -> Vec<(usize, usize)> {
-    let mut kept: BTreeSet<(usize, usize)> = edges.iter().copied().collect();
+    let mut edges = edges.to_vec();
+    edges.sort_unstable();
+    edges.dedup();
     if min_branch == 0 {
-        return kept.into_iter().collect();
+        return edges;
     }
+    let adj = Adjacency::new(n, &edges);
+    let mut alive = vec![true; edges.len()];
+    let mut remove = vec![false; edges.len()];
+    let mut degree = vec![0u32; n];
+    let mut visited_path = vec![false; n];
+    // The first two neighbours of `i` still in the forest, with their edges, in sorted order.
+    let first_two = |alive: &[bool], i: usize| {
+        let mut it = adj
+            .slots(i)
+            .filter(|&s| alive[adj.edge_of[s]])
+            .map(|s| (adj.neighbours[s], adj.edge_of[s]));
+        (it.next(), it.next())
+    };
     loop {
-        let current: Vec<(usize, usize)> = kept.iter().copied().collect();
-        let adj = adjacency(n, &current);
-        let mut remove: BTreeSet<(usize, usize)> = BTreeSet::new();
-        let mut visited_path = vec![false; n];
+        degree.fill(0);
+        for (k, &(a, b)) in edges.iter().enumerate() {
+            if alive[k] {
+                degree[a] += 1;
+                degree[b] += 1;
+            }
+        }
+        visited_path.fill(false);
+        let mut removing = false;
         for start in 0..n {
-            if adj[start].len() != 1 || visited_path[start] {
+            if degree[start] != 1 || visited_path[start] {
                 continue;
             }
-            // Walk from the end point through degree-2 cells.
-            let mut walk = vec![start];
+            // Walk from the end point through degree-2 cells, noting the edges walked.
+            let (Some((mut cur, first_edge)), _) = first_two(&alive, start) else {
+                continue;
+            };
+            let mut walked = vec![first_edge];
             let mut prev = start;
-            let mut cur = adj[start][0];
-            let mut walked: Vec<(usize, usize)> = vec![(start.min(cur), start.max(cur))];
-            while adj[cur].len() == 2 {
-                walk.push(cur);
-                let next = if adj[cur][0] == prev {
-                    adj[cur][1]
-                } else {
-                    adj[cur][0]
+            let mut cells = 1usize;
+            while degree[cur] == 2 {
+                cells += 1;
+                let (Some((a, ea)), Some((b, eb))) = first_two(&alive, cur) else {
+                    break;
                 };
+                let (next, e) = if a == prev { (b, eb) } else { (a, ea) };
                 prev = cur;
                 cur = next;
-                walked.push((prev.min(cur), prev.max(cur)));
+                walked.push(e);
             }
-            if adj[cur].len() == 1 {
+            let short = if degree[cur] == 1 {
                 // A bare path: both ends are end points; remove it when short.
                 visited_path[cur] = true;
-                walk.push(cur);
-                if walk.len() < min_branch {
-                    remove.extend(walked);
-                }
-            } else if walk.len() < min_branch {
+                cells + 1 < min_branch
+            } else {
                 // An end branch hanging from the branch point `cur`.
-                remove.extend(walked);
+                cells < min_branch
+            };
+            if short {
+                for e in walked {
+                    remove[e] = true;
+                    removing = true;
+                }
             }
         }
-        if remove.is_empty() {
+        if !removing {
             break;
         }
-        for e in &remove {
-            kept.remove(e);
+        for (a, r) in alive.iter_mut().zip(&mut remove) {
+            *a &= !*r;
+            *r = false;
         }
     }
-    kept.into_iter().collect()
+    edges
+        .into_iter()
+        .zip(alive)
+        .filter_map(|(e, a)| a.then_some(e))
+        .collect()
 }
 
 /// The paths of a forest: from every key node (degree ≠ 2) along each of its edges to the next
 /// key node. Each path is listed once, from its smaller end to its larger (by cell index), and
 /// the list is sorted by (first cell, second cell).
 pub fn paths(n: usize, edges: &[(usize, usize)], z: &[f32]) -> Vec<FeaturePath> {
-    let adj = adjacency(n, edges);
+    let adj = Adjacency::new(n, edges);
     let mut out: Vec<Vec<usize>> = Vec::new();
     for start in 0..n {
-        let d = adj[start].len();
+        let d = adj.of(start).len();
         if d == 0 || d == 2 {
             continue;
         }
-        for &first in &adj[start] {
+        for &first in adj.of(start) {
             let mut cells = vec![start];
             let mut prev = start;
             let mut cur = first;
-            while adj[cur].len() == 2 {
+            while let &[a, b] = adj.of(cur) {
                 cells.push(cur);
-                let next = if adj[cur][0] == prev {
-                    adj[cur][1]
-                } else {
-                    adj[cur][0]
-                };
+                let next = if a == prev { b } else { a };
                 prev = cur;
                 cur = next;
             }
@@ -528,8 +616,14 @@ pub fn paths(n: usize, edges: &[(usize, usize)], z: &[f32]) -> Vec<FeaturePath> 
             }
         }
     }
-    out.sort();
-    out.into_iter()
+    sorted_paths(out, z)
+}
+
+/// Traced paths sorted by (first cell, second cell), each with its mean elevation on `z`.
+pub(crate) fn sorted_paths(mut traced: Vec<Vec<usize>>, z: &[f32]) -> Vec<FeaturePath> {
+    traced.sort();
+    traced
+        .into_iter()
         .map(|cells| {
             let sum: f64 = cells
                 .iter()
@@ -548,11 +642,13 @@ pub fn paths(n: usize, edges: &[(usize, usize)], z: &[f32]) -> Vec<FeaturePath> 
 pub fn feature_tree(z: &Array2<f32>, kind: FeatureKind, params: &PpaParams) -> FeatureTree {
     let (rows, cols) = z.dim();
     let n = rows * cols;
-    let o = oriented(z, kind);
-    let cand = candidates(&o, rows, cols, params);
-    let segs = segments(&o, rows, cols, &cand);
-    let forest = break_polygons(n, &segs);
+    let forest = {
+        let o = oriented(z, kind);
+        let cand = candidates(&o, rows, cols, params);
+        break_polygons(n, segments(&o, rows, cols, &cand))
+    };
     let edges = reduce_branches(n, &forest, params.min_branch);
+    drop(forest);
     let plain = values(z);
     let paths = paths(n, &edges, &plain);
     FeatureTree {
@@ -691,21 +787,21 @@ pub fn drainage_agreement(
     }
     // Ridges: cross direction from the ridge's own neighbours.
     let labels = basin_labels(&rcv, &channel);
-    let adj = adjacency(n, &features.ridges.edges);
+    let adj = Adjacency::new(n, &features.ridges.edges);
     let (mut tested, mut separating, mut on_channel) = (0usize, 0usize, 0usize);
     let r_i = radius.max(1) as isize;
-    for i in 0..n {
-        if adj[i].is_empty() || !inner(i) {
+    for (i, &on_channel_cell) in channel.iter().enumerate() {
+        let neighbours = adj.of(i);
+        if neighbours.is_empty() || !inner(i) {
             continue;
         }
         // Local direction: from the first to the last neighbour (or to the one neighbour).
         let (r, c) = ((i / cols) as isize, (i % cols) as isize);
         let pos = |j: usize| ((j / cols) as isize, (j % cols) as isize);
-        let (ar, ac) = pos(adj[i][0]);
-        let (br, bc) = if adj[i].len() >= 2 {
-            pos(adj[i][adj[i].len() - 1])
-        } else {
-            (r, c)
+        let (ar, ac) = pos(neighbours[0]);
+        let (br, bc) = match neighbours {
+            [_, .., last] => pos(*last),
+            _ => (r, c),
         };
         let (tr, tc) = (ar - br, ac - bc);
         if tr == 0 && tc == 0 {
@@ -725,7 +821,7 @@ pub fn drainage_agreement(
         if labels[p] != labels[q] {
             separating += 1;
         }
-        if channel[i] {
+        if on_channel_cell {
             on_channel += 1;
         }
     }

@@ -1,5 +1,5 @@
-//! Ridges and valleys (`analysis::ppa`): the optimised profile recognition and polygon breaking
-//! against their naive twins on random grids, the properties of branch reduction, and the
+//! Ridges and valleys (`analysis::ppa`): the optimised profile recognition, polygon breaking,
+//! branch reduction and path tracing against their naive twins on random grids, the properties of branch reduction, and the
 //! acceptance figures on real terrain (valleys cover the D8 channels, ridges separate the D8
 //! basins) on a crop of the committed Tien Shan grid.
 
@@ -32,6 +32,15 @@ fn grid() -> impl Strategy<Value = Array2<f32>> {
     })
 }
 
+/// Random continuous grids up to 40 × 40 (no ties): longer lines, so branch reduction runs
+/// several passes.
+fn continuous_grid() -> impl Strategy<Value = Array2<f32>> {
+    (3usize..40, 3usize..40).prop_flat_map(|(rows, cols)| {
+        proptest::collection::vec(-50.0f32..50.0, rows * cols)
+            .prop_map(move |v| Array2::from_shape_vec((rows, cols), v).unwrap())
+    })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(128))]
 
@@ -59,9 +68,32 @@ proptest! {
         let cand = ppa::candidates(&o, rows, cols, &p);
         let segs = ppa::segments(&o, rows, cols, &cand);
         prop_assert_eq!(
-            ppa::break_polygons(rows * cols, &segs),
+            ppa::break_polygons(rows * cols, segs.clone()),
             ppa_naive::break_polygons(rows * cols, &segs)
         );
+    }
+
+    /// Branch reduction on one adjacency with a flag per edge removes what the naive rebuild of
+    /// the forest at every pass removes, and paths traced on the flat adjacency are the naive
+    /// ones, on the unpruned and the pruned forest, on tied and on continuous grids.
+    #[test]
+    fn branch_reduction_and_paths_equal_naive(
+        z in prop_oneof![grid(), continuous_grid()],
+        window in 1usize..4,
+        min_branch in 0usize..9,
+    ) {
+        let (rows, cols) = z.dim();
+        let n = rows * cols;
+        let p = PpaParams { window, min_drop: 0.0, min_branch: 0 };
+        let o = ppa::oriented(&z, FeatureKind::Valley);
+        let cand = ppa::candidates(&o, rows, cols, &p);
+        let forest = ppa::break_polygons(n, ppa::segments(&o, rows, cols, &cand));
+        let reduced = ppa::reduce_branches(n, &forest, min_branch);
+        prop_assert_eq!(&reduced, &ppa_naive::reduce_branches(n, &forest, min_branch));
+        let plain: Vec<f32> = z.iter().copied().collect();
+        for edges in [&forest, &reduced] {
+            prop_assert_eq!(ppa::paths(n, edges, &plain), ppa_naive::paths(n, edges, &plain));
+        }
     }
 
     /// Branch reduction leaves a sub-forest in which no end branch hanging from a branch

@@ -149,7 +149,7 @@ pub fn sketch_trees(sketch: &Sketch, spacing: usize) -> SketchTrees {
         // Segments weighted so that cells nearer the line are preferred.
         let weight: Vec<f32> = drawn.d.iter().map(|&v| (-v) as f32).collect();
         let segs = crate::analysis::ppa::segments(&weight, rows, cols, &mask);
-        let forest = break_polygons(n, &segs);
+        let forest = break_polygons(n, segs);
         let edges = reduce_branches(n, &forest, 3);
         let tree_paths = paths(n, &edges, &weight);
         descent.resize(path_base as usize + tree_paths.len(), 0.0);
