@@ -9,12 +9,13 @@ use std::time::Instant;
 use ndarray::Array2;
 
 use super::error::CliError;
+use super::output::write_grid;
 use terrasynth_core::dictionary::derive::derived_layers;
 use terrasynth_core::dictionary::format::read_dictionary;
 use terrasynth_core::dictionary::{
     read_any, AnyDictionary, Dictionary, GradientTileSet, MatchWeights,
 };
-use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::raster::{read_raster_file, Grid, ReadLimits};
 use terrasynth_core::synth::{
     amplify_chain, Amplifier, ClampedRaster, GradientAmplifier, Level, Levers, Window,
 };
@@ -212,7 +213,7 @@ pub fn run(args: &AmplifyArgs) -> Result<AmplifySummary, CliError> {
         }
         AnyDictionary::Gradient(set) => amplify_grid_gradient(&set, &grid, args.levels)?,
     };
-    write_geotiff_file(&out, &args.output)?;
+    write_grid(&out, &args.output)?;
     let mut files = vec![args.output.display().to_string()];
     for (name, data) in layers {
         let path = layer_path(&args.output, &name);
@@ -221,7 +222,7 @@ pub fn run(args: &AmplifyArgs) -> Result<AmplifySummary, CliError> {
             georef: out.georef,
             valid: out.valid.clone(),
         };
-        write_geotiff_file(&g, &path)?;
+        write_grid(&g, &path)?;
         files.push(path.display().to_string());
     }
     Ok(AmplifySummary {

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::error::CliError;
+use super::output::write_bytes;
 use terrasynth_core::dictionary::build::{build, BuildOptions, Exemplar};
 use terrasynth_core::dictionary::format::{content_id, write_dictionary};
 use terrasynth_core::dictionary::{no_species, ExemplarOptions, LayerKind, PixelWindow};
@@ -122,7 +123,7 @@ pub fn run(
     let dict = build(&exemplars, &args.options, progress)?;
     let mut bytes = Vec::new();
     write_dictionary(&dict, &mut bytes)?;
-    terrasynth_store::write_atomically(output, &bytes)?;
+    write_bytes(output, &bytes)?;
     Ok(BuildSummary {
         id: content_id(&dict)?,
         atoms: dict.n_atoms,

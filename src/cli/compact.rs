@@ -9,10 +9,11 @@ use serde::Serialize;
 
 use super::amplify::load_dictionary;
 use super::error::CliError;
+use super::output::{write_bytes, write_grid};
 use terrasynth_core::dictionary::analytic::{analytic_atoms, AnalyticKind};
 use terrasynth_core::dictionary::build::MAX_SPARSITY;
 use terrasynth_core::dictionary::format::content_id;
-use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::raster::{read_raster_file, Grid, ReadLimits};
 use terrasynth_core::synth::compact::{compress, psnr_db};
 use terrasynth_core::synth::compact_format::{from_bytes, to_bytes};
 
@@ -234,7 +235,7 @@ pub fn run_compress(args: &CompressArgs) -> Result<CompressSummary, CliError> {
     );
     let (bytes, sizes) =
         to_bytes(&terrain, grid.georef, &origin).map_err(|e| CliError::Usage(e.to_string()))?;
-    terrasynth_store::write_atomically(&args.output, &bytes)?;
+    write_bytes(&args.output, &bytes)?;
     let decoded = terrain.decode();
     let (rows, cols) = heights.dim();
     let raw = rows.saturating_mul(cols).saturating_mul(2).max(1);
@@ -272,6 +273,6 @@ pub fn run_decompress(input: &std::path::Path, output: &std::path::Path) -> Resu
     let (terrain, header) = from_bytes(&bytes, &ReadLimits::default())
         .map_err(|e| CliError::Usage(format!("{}: {e}", input.display())))?;
     let grid = Grid::new(terrain.decode(), header.georef);
-    write_geotiff_file(&grid, output)?;
+    write_grid(&grid, output)?;
     Ok(grid)
 }

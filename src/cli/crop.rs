@@ -7,10 +7,9 @@ use std::path::PathBuf;
 use ndarray::s;
 
 use super::error::CliError;
+use super::output::write_grid;
 use terrasynth_core::dictionary::PixelWindow;
-use terrasynth_core::raster::{
-    read_raster_file, write_geotiff_file, Grid, ReadLimits, SquareCells,
-};
+use terrasynth_core::raster::{read_raster_file, Grid, ReadLimits, SquareCells};
 
 /// Arguments of `crop`.
 #[derive(Clone, Debug)]
@@ -85,7 +84,7 @@ pub fn run(args: &CropArgs) -> Result<Grid, CliError> {
     } else {
         cut
     };
-    write_geotiff_file(&out, &args.output)?;
+    write_grid(&out, &args.output)?;
     Ok(out)
 }
 

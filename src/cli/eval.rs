@@ -9,6 +9,7 @@ use ndarray::{s, Array2};
 use serde::Serialize;
 
 use super::error::CliError;
+use super::output::write_bytes;
 use terrasynth_core::analysis;
 use terrasynth_core::math;
 use terrasynth_core::raster::{read_raster_file, CellSizes, Grid, ReadLimits};
@@ -344,10 +345,7 @@ pub fn evaluate_with_picture(
     let fbm = fbm_upsample(&input_z, factor, coarse_cell, FBM_SEED);
     if let Some(path) = picture {
         let bytes = picture_png(&[&truth_z, &bicubic, &fbm, &output_z], &cells)?;
-        std::fs::write(path, &bytes).map_err(|source| CliError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
+        write_bytes(path, &bytes)?;
     }
     Ok(EvalReport {
         factor,

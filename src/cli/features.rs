@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use super::error::CliError;
+use super::output::write_bytes;
 use terrasynth_core::analysis::ppa::{self, DrainageAgreement, FeatureTree, PpaParams};
 use terrasynth_core::raster::{read_raster_file, ReadLimits};
 use terrasynth_core::synth::sketch::geojson::write_features_geojson;
@@ -62,10 +63,7 @@ pub fn run(args: &FeaturesArgs) -> Result<FeaturesSummary, CliError> {
     let mut bytes = Vec::new();
     write_features_geojson(&trees, &grid.georef, &mut bytes)
         .map_err(|e| CliError::Usage(e.to_string()))?;
-    std::fs::write(&args.output, bytes).map_err(|source| CliError::Io {
-        path: args.output.display().to_string(),
-        source,
-    })?;
+    write_bytes(&args.output, &bytes)?;
     let drainage = args.check.then(|| {
         let cells = grid.georef.cell_sizes(grid.rows());
         ppa::drainage_agreement(&z, &cells, &features, 1e7, 2)

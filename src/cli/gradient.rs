@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::error::CliError;
+use super::output::write_bytes;
 use terrasynth_core::dictionary::gradient_format::{content_id, to_bytes};
 use terrasynth_core::dictionary::{
     build_gradient_tiles, exemplar_plane, GradientParams, PixelWindow,
@@ -66,7 +67,7 @@ pub fn run(args: &GradientBuildArgs, output: &Path) -> Result<GradientBuildSumma
     }
     let set = build_gradient_tiles(&grids, &args.params)?;
     let bytes = to_bytes(&set)?;
-    terrasynth_store::write_atomically(output, &bytes)?;
+    write_bytes(output, &bytes)?;
     let combinations = args.params.combinations();
     Ok(GradientBuildSummary {
         id: content_id(&set)?,

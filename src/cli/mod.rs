@@ -13,6 +13,7 @@ pub mod eval;
 pub mod export;
 pub mod features;
 pub mod gradient;
+pub mod output;
 pub mod sketch;
 
 pub use error::CliError;

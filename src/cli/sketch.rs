@@ -6,8 +6,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::error::CliError;
+use super::output::write_grid;
 use terrasynth_core::analysis::{flood_extent, ppa::PpaParams};
-use terrasynth_core::raster::{read_raster_file, write_geotiff_file, Grid, ReadLimits};
+use terrasynth_core::raster::{read_raster_file, Grid, ReadLimits};
 use terrasynth_core::synth::sketch::geojson::parse_sketch;
 use terrasynth_core::synth::sketch::quality::{self, Fidelity, Seams};
 use terrasynth_core::synth::sketch::{
@@ -120,7 +121,7 @@ pub fn run(
         true
     })?;
     let seconds = start.elapsed().as_secs_f64();
-    write_geotiff_file(&world.grid, &args.output)?;
+    write_grid(&world.grid, &args.output)?;
     Ok(SketchSummary {
         width: world.grid.cols(),
         height: world.grid.rows(),

@@ -46,7 +46,10 @@ pub use error::{ServiceError, StoreError};
 pub use jobs::{DictionaryRequest, Job, JobRequest, JobSettings, JobState};
 pub use service::{Catalogue, ResolvedBiome, ResolvedDictionary, ResolvedWorld};
 pub use sketch::SketchRequest;
-pub use store::{write_atomically, ObjectKind, Store, Stored, MAX_DICTIONARY_BYTES, STORE_VERSION};
+pub use store::{
+    write_atomically, write_atomically_with, ObjectKind, Store, Stored, MAX_DICTIONARY_BYTES,
+    STORE_VERSION,
+};
 pub use worlds::{
     DictionaryBandRef, WorldBiomeRef, WorldControlRef, WorldDefaults, WorldDefinition,
     WorldDictionary, WorldRequest,

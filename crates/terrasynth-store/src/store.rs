@@ -125,6 +125,17 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StoreError + '_ {
 /// Writes `bytes` to `path` atomically: temporary file in the same directory, fsync, rename,
 /// fsync of the directory.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
+    write_atomically_with(path, |f| f.write_all(bytes).map_err(io(path)))
+}
+
+/// Writes `path` atomically with `write`, which writes the whole file into a buffered temporary
+/// file in the same directory; then fsync, rename, fsync of the directory. Whatever happens
+/// before the rename (an error of `write` or of the disk, a crash), `path` keeps what it held,
+/// or stays absent; on an error the temporary file is removed.
+pub fn write_atomically_with<E: From<StoreError>>(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), E>,
+) -> Result<(), E> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -134,11 +145,19 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "object".into());
     let tmp = temp_beside(dir, &name);
-    let mut f = std::fs::File::create(&tmp).map_err(io(&tmp))?;
-    f.write_all(bytes).map_err(io(&tmp))?;
-    f.sync_all().map_err(io(&tmp))?;
-    drop(f);
-    std::fs::rename(&tmp, path).map_err(io(path))?;
+    let file = std::fs::File::create(&tmp).map_err(io(&tmp))?;
+    let mut out = std::io::BufWriter::new(file);
+    let written = write(&mut out).and_then(|()| {
+        let file = out.into_inner().map_err(|e| io(&tmp)(e.into_error()))?;
+        file.sync_all().map_err(io(&tmp))?;
+        drop(file);
+        std::fs::rename(&tmp, path).map_err(io(path))?;
+        Ok(())
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+        return written;
+    }
     sync_dir(dir);
     Ok(())
 }
@@ -685,6 +704,32 @@ mod tests {
             store.put_landscape("../x", b"no"),
             Err(StoreError::BadName(_))
         ));
+    }
+
+    /// A file written with `write_atomically_with` whose writer fails half-way keeps its old
+    /// bytes, and nothing else is left in the directory; one that succeeds is replaced whole.
+    #[test]
+    fn failed_atomic_write_keeps_the_old_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.tif");
+        write_atomically(&path, b"old bytes").unwrap();
+        let failed = write_atomically_with(&path, |f| {
+            f.write_all(&[7u8; 100_000]).map_err(io(&path))?;
+            Err(StoreError::BadName("the writer failed".into()))
+        });
+        assert!(matches!(failed, Err(StoreError::BadName(_))));
+        assert_eq!(std::fs::read(&path).unwrap(), b"old bytes");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("out.tif")]);
+        write_atomically_with(&path, |f| f.write_all(b"new").map_err(io(&path))).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
+        // A missing file stays missing when the writer fails.
+        let absent = dir.path().join("absent.tif");
+        let _ = write_atomically_with(&absent, |_| Err(StoreError::BadName("no".into())));
+        assert!(!absent.exists());
     }
 
     #[test]
