@@ -5,17 +5,28 @@
 use std::path::Path;
 
 use terrasynth_core::raster::{write_geotiff, Grid};
+use terrasynth_store::StoreError;
 
 use super::error::CliError;
 
 /// Writes `grid` to `path` as a GeoTIFF.
 pub fn write_grid(grid: &Grid, path: &Path) -> Result<(), CliError> {
     terrasynth_store::write_atomically_with(path, |out| Ok(write_geotiff(grid, out)?))
+        .map_err(file_error)
 }
 
 /// Writes `bytes` to `path`.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    Ok(terrasynth_store::write_atomically(path, bytes)?)
+    terrasynth_store::write_atomically(path, bytes).map_err(|e| file_error(e.into()))
+}
+
+/// A failed file operation as the command line says it (`PATH: the OS error`), not as the
+/// store's.
+fn file_error(e: CliError) -> CliError {
+    match e {
+        CliError::Store(StoreError::Io { path, source }) => CliError::Io { path, source },
+        other => other,
+    }
 }
 
 #[cfg(test)]
@@ -45,5 +56,13 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("out.tif")]);
+        // A directory that is not there: the message names the output, as a file error.
+        let missing = dir.path().join("nowhere").join("x.geojson");
+        let e = write_bytes(&missing, b"{}").unwrap_err();
+        assert!(matches!(e, CliError::Io { .. }), "{e:?}");
+        assert!(
+            e.to_string().starts_with(&missing.display().to_string()),
+            "{e}"
+        );
     }
 }

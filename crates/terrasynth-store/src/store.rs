@@ -145,11 +145,12 @@ pub fn write_atomically_with<E: From<StoreError>>(
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "object".into());
     let tmp = temp_beside(dir, &name);
-    let file = std::fs::File::create(&tmp).map_err(io(&tmp))?;
+    // Errors name `path`, the file the caller asked for, not the temporary one.
+    let file = std::fs::File::create(&tmp).map_err(io(path))?;
     let mut out = std::io::BufWriter::new(file);
     let written = write(&mut out).and_then(|()| {
-        let file = out.into_inner().map_err(|e| io(&tmp)(e.into_error()))?;
-        file.sync_all().map_err(io(&tmp))?;
+        let file = out.into_inner().map_err(|e| io(path)(e.into_error()))?;
+        file.sync_all().map_err(io(path))?;
         drop(file);
         std::fs::rename(&tmp, path).map_err(io(path))?;
         Ok(())
@@ -730,6 +731,10 @@ mod tests {
         let absent = dir.path().join("absent.tif");
         let _ = write_atomically_with(&absent, |_| Err(StoreError::BadName("no".into())));
         assert!(!absent.exists());
+        // Errors name the file asked for, not the temporary one.
+        let missing = dir.path().join("no-such-dir").join("x.tif");
+        let e = write_atomically(&missing, b"x").unwrap_err().to_string();
+        assert!(e.contains(&missing.display().to_string()), "{e}");
     }
 
     #[test]
