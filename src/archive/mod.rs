@@ -92,7 +92,8 @@ pub fn io_error(path: &Path) -> impl Fn(std::io::Error) -> ArchiveError + '_ {
     }
 }
 
-/// The temporary name an archive is written under: `.NAME.tmp-PID` in the same directory.
+/// The temporary name an archive (or any command's output, `cli::output`) is written under:
+/// `.NAME.tmp-PID` in the same directory.
 pub fn temporary_path(output: &Path) -> PathBuf {
     let name = output
         .file_name()

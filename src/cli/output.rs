@@ -1,23 +1,41 @@
-//! A command's output files, every one written atomically (a temporary file beside it, fsync,
-//! rename; `terrasynth_store::write_atomically_with`): a command that fails or is interrupted
-//! leaves the file it was to replace as it was, or no file, never a truncated one.
+//! A command's output files, every one written atomically, as the export archives are: under
+//! the temporary name `.NAME.tmp-PID` beside the output ([`crate::archive::temporary_path`]),
+//! fsync, rename (`terrasynth_store::write_atomically_via`). A command that fails or is
+//! interrupted leaves the file it was to replace as it was, or no file, never a truncated one;
+//! what a killed command left is removed by the next command writing the same output
+//! ([`crate::archive::remove_stale_temporaries`]).
 
+use std::io::Write;
 use std::path::Path;
 
 use terrasynth_core::raster::{write_geotiff, Grid};
 use terrasynth_store::StoreError;
 
 use super::error::CliError;
+use crate::archive::{remove_stale_temporaries, temporary_path};
 
 /// Writes `grid` to `path` as a GeoTIFF.
 pub fn write_grid(grid: &Grid, path: &Path) -> Result<(), CliError> {
-    terrasynth_store::write_atomically_with(path, |out| Ok(write_geotiff(grid, out)?))
-        .map_err(file_error)
+    write_file(path, |out| Ok(write_geotiff(grid, out)?))
 }
 
 /// Writes `bytes` to `path`.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    terrasynth_store::write_atomically(path, bytes).map_err(|e| file_error(e.into()))
+    write_file(path, |out| {
+        out.write_all(bytes).map_err(|source| CliError::Io {
+            path: path.display().to_string(),
+            source,
+        })
+    })
+}
+
+/// Writes `path` with `write`, through its temporary name.
+fn write_file(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), CliError>,
+) -> Result<(), CliError> {
+    remove_stale_temporaries(path);
+    terrasynth_store::write_atomically_via(&temporary_path(path), path, write).map_err(file_error)
 }
 
 /// A failed file operation as the command line says it (`PATH: the OS error`), not as the
@@ -56,6 +74,11 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("out.tif")]);
+        // What a killed command left under the temporary name is removed by the next write.
+        let leftover = dir.path().join(".out.tif.tmp-4000000000");
+        std::fs::write(&leftover, b"partial").unwrap();
+        write_grid(&good, &path).unwrap();
+        assert!(!leftover.exists());
         // A directory that is not there: the message names the output, as a file error.
         let missing = dir.path().join("nowhere").join("x.geojson");
         let e = write_bytes(&missing, b"{}").unwrap_err();

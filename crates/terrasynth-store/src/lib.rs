@@ -47,8 +47,8 @@ pub use jobs::{DictionaryRequest, Job, JobRequest, JobSettings, JobState};
 pub use service::{Catalogue, ResolvedBiome, ResolvedDictionary, ResolvedWorld};
 pub use sketch::SketchRequest;
 pub use store::{
-    write_atomically, write_atomically_with, ObjectKind, Store, Stored, MAX_DICTIONARY_BYTES,
-    STORE_VERSION,
+    write_atomically, write_atomically_via, write_atomically_with, ObjectKind, Store, Stored,
+    MAX_DICTIONARY_BYTES, STORE_VERSION,
 };
 pub use worlds::{
     DictionaryBandRef, WorldBiomeRef, WorldControlRef, WorldDefaults, WorldDefinition,

@@ -136,31 +136,45 @@ pub fn write_atomically_with<E: From<StoreError>>(
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), E>,
 ) -> Result<(), E> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "object".into());
-    let tmp = temp_beside(dir, &name);
+    let tmp = temp_beside(parent_dir(path), &name);
+    write_atomically_via(&tmp, path, write)
+}
+
+/// [`write_atomically_with`] through the temporary file `tmp`, which the caller names (it must
+/// be in `path`'s directory, so that the rename is atomic).
+pub fn write_atomically_via<E: From<StoreError>>(
+    tmp: &Path,
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), E>,
+) -> Result<(), E> {
+    let dir = parent_dir(path);
     // Errors name `path`, the file the caller asked for, not the temporary one.
-    let file = std::fs::File::create(&tmp).map_err(io(path))?;
+    let file = std::fs::File::create(tmp).map_err(io(path))?;
     let mut out = std::io::BufWriter::new(file);
     let written = write(&mut out).and_then(|()| {
         let file = out.into_inner().map_err(|e| io(path)(e.into_error()))?;
         file.sync_all().map_err(io(path))?;
         drop(file);
-        std::fs::rename(&tmp, path).map_err(io(path))?;
+        std::fs::rename(tmp, path).map_err(io(path))?;
         Ok(())
     });
     if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+        let _ = std::fs::remove_file(tmp);
         return written;
     }
     sync_dir(dir);
     Ok(())
+}
+
+/// The directory `path` is in (`.` for a bare name).
+fn parent_dir(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
 }
 
 /// Fsyncs a directory, making renames and removals in it durable (not supported on every
