@@ -16,6 +16,7 @@ use terrasynth_core::analysis::ppa::FeatureTree;
 use terrasynth_core::synth::sketch::geojson::write_features_geojson;
 use terrasynth_tiles::{gzip, TileError, World};
 
+use super::conditional::none_match;
 use super::encoding::Coding;
 use super::error::{Problem, ServerError};
 use super::state::AppState;
@@ -80,11 +81,7 @@ pub async fn features(
     let tag = coding.etag(&identity_tag);
     let tag_value =
         HeaderValue::from_str(&tag).map_err(|e| ServerError::Internal(e.to_string()))?;
-    let matches = headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|t| t.trim() == tag || t.trim() == "*"));
-    if matches {
+    if none_match(&headers, &tag) {
         let mut resp = StatusCode::NOT_MODIFIED.into_response();
         resp.headers_mut().insert(header::ETAG, tag_value);
         coding.mark(resp.headers_mut());

@@ -4,16 +4,18 @@
 //! absolute URLs: the configured `public_url`, or else the `Host` (and `X-Forwarded-Proto`) the
 //! request came with — then the answer says `Vary: Host, X-Forwarded-Proto`, so that caches keep
 //! one copy per host — with the listening address standing in for a missing or invalid `Host`.
+//! The documents carry a weak ETag of their bytes and `Cache-Control: no-cache`, and answer a
+//! matching `If-None-Match` with 304 ([`super::conditional::revalidated`]).
 
 use axum::extract::{Path, Query, State};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::{IntoResponse, Response};
-use axum::Json;
 use serde::Serialize;
 
 use terrasynth_tiles::style::{style_json, tilejson_in, LAYERS};
 use terrasynth_tiles::{TileJson, World};
 
+use super::conditional::revalidated_json;
 use super::error::{Problem, ServerError};
 use super::state::AppState;
 use crate::config::ServerConfig;
@@ -155,29 +157,28 @@ fn fallback_host(listen: &str) -> String {
     }
 }
 
-/// A JSON answer whose URLs were built on `base_url`'s base, with its `Vary` header.
-fn json_varying<T: Serialize>(body: T, vary: Option<HeaderValue>) -> Response {
-    let mut resp = Json(body).into_response();
-    if let Some(v) = vary {
-        resp.headers_mut().insert(header::VARY, v);
-    }
-    resp
-}
-
 /// Every world.
 #[utoipa::path(get, path = "/worlds", tag = "meta",
-    responses((status = 200, description = "Worlds", body = Vec<WorldInfo>)))]
+    params(("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")),
+    responses(
+        (status = 200, description = "Worlds; a weak `ETag` of the bytes, `Cache-Control: no-cache`", body = Vec<WorldInfo>),
+        (status = 304, description = "Not modified (`If-None-Match` names the weak ETag of the document's bytes)"),
+    ))]
 pub async fn worlds(State(state): State<AppState>, headers: HeaderMap) -> Response {
     let (base, vary) = base_url(&state.config, &headers);
     let list: Vec<WorldInfo> = state.worlds.values().map(|w| info(w, &base)).collect();
-    json_varying(list, vary)
+    revalidated_json(&headers, &list, vary)
 }
 
 /// One world.
 #[utoipa::path(get, path = "/worlds/{world}", tag = "meta",
-    params(("world" = String, Path, description = "World name")),
+    params(
+        ("world" = String, Path, description = "World name"),
+        ("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")
+    ),
     responses(
-        (status = 200, description = "The world", body = WorldInfo),
+        (status = 200, description = "The world; a weak `ETag` of the bytes, `Cache-Control: no-cache`", body = WorldInfo),
+        (status = 304, description = "Not modified (`If-None-Match` names the weak ETag of the document's bytes)"),
         (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
     ))]
 pub async fn world(
@@ -187,7 +188,7 @@ pub async fn world(
 ) -> Result<Response, ServerError> {
     let w = state.find_world(&name).await?;
     let (base, vary) = base_url(&state.config, &headers);
-    Ok(json_varying(info(&w, &base), vary))
+    Ok(revalidated_json(&headers, &info(&w, &base), vary))
 }
 
 /// TileJSON 3.0.0 of a layer.
@@ -198,10 +199,12 @@ pub async fn world(
     params(
         ("world" = String, Path, description = "World name"),
         ("file" = String, Path, description = "`{layer}.json`"),
-        ("tile_format" = Option<String>, Query, description = "`png` (default) or `webp` (lossless; `elevation` and `color`): the format of the tile URLs")
+        ("tile_format" = Option<String>, Query, description = "`png` (default) or `webp` (lossless; `elevation` and `color`): the format of the tile URLs"),
+        ("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")
     ),
     responses(
-        (status = 200, description = "TileJSON", body = TileJson),
+        (status = 200, description = "TileJSON; a weak `ETag` of the bytes, `Cache-Control: no-cache`", body = TileJson),
+        (status = 304, description = "Not modified (`If-None-Match` names the weak ETag of the document's bytes)"),
         (status = 404, description = "Unknown world or layer, or a layer without that tile format", body = Problem, content_type = "application/problem+json")
     )
 )]
@@ -216,7 +219,7 @@ pub async fn tilejson(
     let format = query.get("tile_format").map_or("png", String::as_str);
     file.strip_suffix(".json")
         .and_then(|layer| tilejson_in(&w, &base, layer, format))
-        .map(|t: TileJson| json_varying(t, vary))
+        .map(|t: TileJson| revalidated_json(&headers, &t, vary))
         .ok_or_else(|| ServerError::NotFound(format!("no TileJSON `{file}`")))
 }
 
@@ -227,9 +230,13 @@ pub async fn tilejson(
     get,
     path = "/styles/{file}",
     tag = "tiles",
-    params(("file" = String, Path, description = "`{world}.json`")),
+    params(
+        ("file" = String, Path, description = "`{world}.json`"),
+        ("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")
+    ),
     responses(
-        (status = 200, description = "MapLibre style", body = Object),
+        (status = 200, description = "MapLibre style; a weak `ETag` of the bytes, `Cache-Control: no-cache`", body = Object),
+        (status = 304, description = "Not modified (`If-None-Match` names the weak ETag of the document's bytes)"),
         (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
     )
 )]
@@ -243,7 +250,7 @@ pub async fn style(
         .ok_or_else(|| ServerError::NotFound(format!("no style `{file}`")))?;
     let w = state.find_world(name).await?;
     let (base, vary) = base_url(&state.config, &headers);
-    Ok(json_varying(style_json(&w, &base), vary))
+    Ok(revalidated_json(&headers, &style_json(&w, &base), vary))
 }
 
 /// Liveness.

@@ -4,12 +4,14 @@
 //! [`admin`]), errors as problem+json
 //! ([`error`]), Prometheus metrics ([`metrics`]), the shared state ([`state`]), world loading
 //! ([`worlds`]), worlds other replicas created in a shared store ([`pickup`]), start-up ([`startup`]) and the accept loop with its connection limits
-//! ([`connections`]), the gzip coding of vector and GeoJSON answers ([`encoding`]). CPU work (tile synthesis and encoding) and blocking IO run on tokio's
+//! ([`connections`]), the gzip coding of vector and GeoJSON answers ([`encoding`]), ETags and
+//! `If-None-Match` ([`conditional`]). CPU work (tile synthesis and encoding) and blocking IO run on tokio's
 //! blocking pool, tiles behind a semaphore and a bounded queue; the async runtime only moves
 //! bytes. A request that outlives its deadline, or whose client leaves, cancels the synthesis
 //! nobody else waits for.
 
 pub mod admin;
+pub mod conditional;
 pub mod connections;
 pub mod encoding;
 pub mod error;

@@ -8,11 +8,15 @@
 //! Tile layers are described generically (`/tiles/{world}/{layer}/{z}/{x}/{y}`, with the layer
 //! and extension as parameters), so that new layers fit without changing the description.
 
-use axum::http::{header, HeaderValue};
-use axum::response::{IntoResponse, Response};
+use std::sync::OnceLock;
+
+use axum::body::Bytes;
+use axum::http::{HeaderMap, HeaderValue};
+use axum::response::Response;
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
+use super::conditional::{bytes_etag, revalidated};
 use super::error::Problem;
 
 struct BearerAuth;
@@ -64,14 +68,24 @@ pub fn spec_json() -> String {
 
 /// This description.
 #[utoipa::path(get, path = "/openapi.json", tag = "meta", operation_id = "openapi_json",
-    responses((status = 200, description = "OpenAPI 3.1", body = Object)))]
-pub async fn serve_spec() -> Response {
-    static SPEC: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    let body = SPEC.get_or_init(spec_json).clone();
-    let mut resp = body.into_response();
-    resp.headers_mut().insert(
-        header::CONTENT_TYPE,
+    params(("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")),
+    responses(
+        (status = 200, description = "OpenAPI 3.1; a weak `ETag` of the bytes, `Cache-Control: no-cache`", body = Object),
+        (status = 304, description = "Not modified (`If-None-Match`)")
+    ))]
+pub async fn serve_spec(headers: HeaderMap) -> Response {
+    /// The description's bytes and their ETag, made at the first request.
+    static SPEC: OnceLock<(Bytes, String)> = OnceLock::new();
+    let (body, tag) = SPEC.get_or_init(|| {
+        let body = spec_json();
+        let tag = bytes_etag(body.as_bytes());
+        (Bytes::from(body), tag)
+    });
+    revalidated(
+        &headers,
+        tag,
+        body.clone(),
         HeaderValue::from_static("application/json"),
-    );
-    resp
+        None,
+    )
 }

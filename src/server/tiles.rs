@@ -18,6 +18,7 @@ use terrasynth_tiles::{
     check_against_world, etag, gzip, parse_request, query_map, render, RequestError,
 };
 
+use super::conditional::none_match;
 use super::encoding::Coding;
 use super::error::{Problem, ServerError};
 use super::state::AppState;
@@ -37,16 +38,6 @@ fn tile_segments(uri: &Uri) -> Result<[&str; 5], ServerError> {
         return Err(ServerError::NotFound("no such resource".into()));
     };
     Ok([w, l, z, x, y])
-}
-
-fn etag_matches(headers: &HeaderMap, tag: &str) -> bool {
-    headers
-        .get_all(header::IF_NONE_MATCH)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .flat_map(|v| v.split(','))
-        .map(str::trim)
-        .any(|t| t == "*" || t == tag || t.strip_prefix("W/") == Some(tag))
 }
 
 /// A tile.
@@ -124,7 +115,7 @@ pub async fn tile(
         }
         resp
     };
-    if etag_matches(&headers, &tag) {
+    if none_match(&headers, &tag) {
         return Ok(respond(StatusCode::NOT_MODIFIED, Body::empty()));
     }
     let content_type = HeaderValue::from_static(req.kind.content_type());

@@ -356,6 +356,91 @@ async fn tilejson_worlds_health_metrics() {
     assert!(text.contains("terrasynth_synthesis_seconds_total{world=\"mini\"}"));
 }
 
+/// `W/"` and the first 16 bytes of the SHA-256 of `body` in hex, computed here.
+fn weak_tag_of(body: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    let hex: String = Sha256::digest(body)[..16]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    format!("W/\"{hex}\"")
+}
+
+#[tokio::test]
+async fn documents_carry_a_weak_etag_of_their_bytes_and_revalidate_with_304() {
+    let app = router(&ServerConfig::default());
+    let asking = |uri: &str, fields: &[(header::HeaderName, &str)]| {
+        let mut r = get(uri);
+        for (k, v) in fields {
+            r.headers_mut().append(k, v.parse().unwrap());
+        }
+        r
+    };
+    for uri in [
+        "/worlds",
+        "/worlds/mini",
+        "/tiles/mini/elevation.json",
+        "/tiles/mini/color.json?tile_format=webp",
+        "/styles/mini.json",
+        "/openapi.json",
+        "/",
+        "/minimal.html",
+        "/app.js",
+        "/app.css",
+    ] {
+        let (st, h, body) = send(&app, get(uri)).await;
+        assert_eq!(st, StatusCode::OK, "{uri}");
+        assert!(!body.is_empty(), "{uri}");
+        let tag = h[header::ETAG].to_str().unwrap().to_string();
+        assert_eq!(tag, weak_tag_of(&body), "{uri}");
+        assert_eq!(h[header::CACHE_CONTROL], "no-cache", "{uri}");
+        // Its own tag, alone or in a list, weak or not: 304, no body, the same validators.
+        for field in [
+            tag.clone(),
+            format!("\"x\", {}", tag.trim_start_matches("W/")),
+        ] {
+            let (st, h2, b2) = send(&app, asking(uri, &[(header::IF_NONE_MATCH, &field)])).await;
+            assert_eq!(st, StatusCode::NOT_MODIFIED, "{uri} {field}");
+            assert!(b2.is_empty(), "{uri}");
+            assert_eq!(h2[header::ETAG], tag.as_str(), "{uri}");
+            assert_eq!(h2[header::CACHE_CONTROL], "no-cache", "{uri}");
+        }
+        let other = asking(uri, &[(header::IF_NONE_MATCH, "W/\"0123\"")]);
+        assert_eq!(send(&app, other).await.0, StatusCode::OK, "{uri}");
+        // Gzip-coded by the compression layer under the same weak tag, which revalidates too.
+        let gz = [(header::ACCEPT_ENCODING, "gzip")];
+        let (st, gh, gz_body) = send(&app, asking(uri, &gz)).await;
+        assert_eq!(st, StatusCode::OK, "{uri}");
+        assert_eq!(gh[header::ETAG], tag.as_str(), "{uri}");
+        assert_eq!(
+            crate::support::gzip_coded_body(&gh, &gz_body),
+            body,
+            "{uri}"
+        );
+        let again = asking(uri, &[gz[0].clone(), (header::IF_NONE_MATCH, &tag)]);
+        assert_eq!(send(&app, again).await.0, StatusCode::NOT_MODIFIED, "{uri}");
+    }
+    // A document built on the request's host is another document on another host: its tag
+    // changes with the bytes, and the first host's tag no longer matches.
+    let (_, h, body) = send(&app, get("/tiles/mini/elevation.json")).await;
+    let (st, h2, body2) = send(
+        &app,
+        asking(
+            "/tiles/mini/elevation.json",
+            &[
+                (header::HOST, "tiles.example:8443"),
+                (header::IF_NONE_MATCH, h[header::ETAG].to_str().unwrap()),
+            ],
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK);
+    assert_ne!(body, body2);
+    assert_ne!(h[header::ETAG], h2[header::ETAG]);
+    assert_eq!(h2[header::ETAG].to_str().unwrap(), weak_tag_of(&body2));
+    assert!(h2[header::VARY].to_str().unwrap().contains("Host"));
+}
+
 // --- invariants of the pyramid: seamless and zoom-consistent ---
 
 fn mosaic(world: &World, z: u8, x0: u32, y0: u32, n: u32) -> Array2<f32> {

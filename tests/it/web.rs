@@ -98,13 +98,38 @@ async fn maplibre_comes_from_the_install_directory() {
         b"export const v = 1;\n"
     );
     assert_eq!(send(&app, gz_get()).await.2, gz);
-    // A new install is served, not the cached old one.
+    // Strong ETags, one per coding, that revalidate with 304 and no body.
+    let tag = h[header::ETAG].to_str().unwrap().to_string();
+    let gz_tag = gh[header::ETAG].to_str().unwrap().to_string();
+    assert!(tag.starts_with("\"vendor-") && tag.ends_with('"'), "{tag}");
+    assert_eq!(gz_tag, format!("{}-gzip\"", tag.trim_end_matches('"')));
+    let revalidate = |tag: &str, gzip: bool| {
+        let mut r = Request::builder()
+            .uri("/vendor/maplibre-gl/maplibre-gl.mjs")
+            .header(header::IF_NONE_MATCH, tag);
+        if gzip {
+            r = r.header(header::ACCEPT_ENCODING, "gzip");
+        }
+        r.body(Body::empty()).unwrap()
+    };
+    for (t, gzip) in [(&tag, false), (&gz_tag, true)] {
+        let (st, rh, body) = send(&app, revalidate(t, gzip)).await;
+        assert_eq!(st, StatusCode::NOT_MODIFIED, "{t}");
+        assert!(body.is_empty());
+        assert_eq!(rh[header::ETAG], t.as_str());
+    }
+    assert_eq!(send(&app, revalidate(&tag, true)).await.0, StatusCode::OK);
+    // A new install is served, not the cached old one, under another ETag.
     std::fs::write(dir.join("maplibre-gl.mjs"), "export const v = 22;\n").unwrap();
     let (_, gh, gz2) = send(&app, gz_get()).await;
     assert_eq!(
         crate::support::gzip_coded_body(&gh, &gz2),
         b"export const v = 22;\n"
     );
+    assert_ne!(gh[header::ETAG], gz_tag.as_str());
+    let (st, _, body) = send(&app, revalidate(&tag, false)).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(body, b"export const v = 22;\n");
 
     for uri in [
         "/vendor/maplibre-gl/secret.txt",
