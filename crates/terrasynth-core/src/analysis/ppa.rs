@@ -329,15 +329,27 @@ pub fn candidates(z: &[f32], rows: usize, cols: usize, params: &PpaParams) -> Ve
     out
 }
 
+/// A segment of the target connection: its weight and its two cells. Cell indices are `u32`
+/// (16 bytes a segment instead of 24, a world's base has millions): [`segments`] gives none on
+/// a grid of more than `u32::MAX` cells (the raster readers' limit is 2^28).
+pub type Segment = (f64, u32, u32);
+
+/// The largest grid, in cells, that has [`Segment`]s.
+pub const MAX_SEGMENT_CELLS: usize = u32::MAX as usize;
+
 /// The segments of the target connection: `(weight, a, b)` with `a < b` for every pair of
 /// 8-adjacent candidates, weight = `z[a] + z[b]` in `f64`; of two crossing diagonals of a 2×2
-/// block only the heavier is kept (ties: the north-west–south-east one).
-pub fn segments(z: &[f32], rows: usize, cols: usize, cand: &[bool]) -> Vec<(f64, usize, usize)> {
+/// block only the heavier is kept (ties: the north-west–south-east one). None on a grid of more
+/// than [`MAX_SEGMENT_CELLS`] cells.
+pub fn segments(z: &[f32], rows: usize, cols: usize, cand: &[bool]) -> Vec<Segment> {
     let mut out = Vec::new();
-    if z.len() != rows * cols || cand.len() != rows * cols {
+    let n = rows * cols;
+    if z.len() != n || cand.len() != n || n > MAX_SEGMENT_CELLS {
         return out;
     }
     let w = |a: usize, b: usize| f64::from(z[a]) + f64::from(z[b]);
+    // Every index is below n ≤ u32::MAX, so the conversions are exact.
+    let seg = |weight: f64, a: usize, b: usize| (weight, a as u32, b as u32);
     for r in 0..rows {
         for c in 0..cols {
             let i = r * cols + c;
@@ -345,21 +357,21 @@ pub fn segments(z: &[f32], rows: usize, cols: usize, cand: &[bool]) -> Vec<(f64,
                 continue;
             }
             if c + 1 < cols && cand[i + 1] {
-                out.push((w(i, i + 1), i, i + 1));
+                out.push(seg(w(i, i + 1), i, i + 1));
             }
             if r + 1 < rows {
                 let s = i + cols;
                 if cand[s] {
-                    out.push((w(i, s), i, s));
+                    out.push(seg(w(i, s), i, s));
                 }
                 // The diagonals of the block whose top-left cell is i: i–(s+1) and (i+1)–s.
                 if c + 1 < cols {
                     let se = cand[s + 1].then(|| w(i, s + 1));
                     let sw = (cand[i + 1] && cand[s]).then(|| w(i + 1, s));
                     match (se, sw) {
-                        (Some(a), Some(b)) if b > a => out.push((b, i + 1, s)),
-                        (Some(a), _) => out.push((a, i, s + 1)),
-                        (None, Some(b)) => out.push((b, i + 1, s)),
+                        (Some(a), Some(b)) if b > a => out.push(seg(b, i + 1, s)),
+                        (Some(a), _) => out.push(seg(a, i, s + 1)),
+                        (None, Some(b)) => out.push(seg(b, i + 1, s)),
                         (None, None) => {}
                     }
                 }
@@ -370,60 +382,65 @@ pub fn segments(z: &[f32], rows: usize, cols: usize, cand: &[bool]) -> Vec<(f64,
 }
 
 /// The total order of polygon breaking: heavier segments first, then by cell indices.
-pub fn segment_order(a: &(f64, usize, usize), b: &(f64, usize, usize)) -> std::cmp::Ordering {
+pub fn segment_order(a: &Segment, b: &Segment) -> std::cmp::Ordering {
     b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
 }
 
-/// A union–find over `n` elements (path halving, union by size).
+/// A union–find over at most `u32::MAX` elements (path halving, union by size), 8 bytes an
+/// element.
 struct UnionFind {
-    parent: Vec<usize>,
-    size: Vec<usize>,
+    parent: Vec<u32>,
+    size: Vec<u32>,
 }
 
 impl UnionFind {
-    fn new(n: usize) -> Self {
+    /// `n` singletons; `n` ≤ [`MAX_SEGMENT_CELLS`].
+    fn new(n: u32) -> Self {
         UnionFind {
             parent: (0..n).collect(),
-            size: vec![1; n],
+            size: vec![1; n as usize],
         }
     }
 
-    fn find(&mut self, mut x: usize) -> usize {
-        while self.parent[x] != x {
-            self.parent[x] = self.parent[self.parent[x]];
-            x = self.parent[x];
+    fn find(&mut self, mut x: u32) -> u32 {
+        while self.parent[x as usize] != x {
+            let grand = self.parent[self.parent[x as usize] as usize];
+            self.parent[x as usize] = grand;
+            x = grand;
         }
         x
     }
 
     /// Joins the sets of `a` and `b`; false when they already were one.
-    fn union(&mut self, a: usize, b: usize) -> bool {
+    fn union(&mut self, a: u32, b: u32) -> bool {
         let (ra, rb) = (self.find(a), self.find(b));
         if ra == rb {
             return false;
         }
-        let (big, small) = if self.size[ra] >= self.size[rb] {
+        let (big, small) = if self.size[ra as usize] >= self.size[rb as usize] {
             (ra, rb)
         } else {
             (rb, ra)
         };
-        self.parent[small] = big;
-        self.size[big] += self.size[small];
+        self.parent[small as usize] = big;
+        // Set sizes sum to at most n ≤ u32::MAX.
+        self.size[big as usize] += self.size[small as usize];
         true
     }
 }
 
 /// Polygon breaking: the maximum spanning forest of `segments` under [`segment_order`] (Kruskal),
-/// as sorted `(a, b)` pairs. `n` is the number of cells. Takes the segments by value and sorts
-/// them in place: a world's base has millions.
-pub fn break_polygons(n: usize, mut segments: Vec<(f64, usize, usize)>) -> Vec<(usize, usize)> {
-    segments.retain(|s| s.1 < n && s.2 < n && s.1 != s.2);
+/// as sorted `(a, b)` pairs. `n` is the number of cells (segments with a cell at or beyond it are
+/// ignored). Takes the segments by value and sorts them in place: a world's base has millions.
+pub fn break_polygons(n: usize, mut segments: Vec<Segment>) -> Vec<(usize, usize)> {
+    let cells = u32::try_from(n.min(MAX_SEGMENT_CELLS)).unwrap_or(u32::MAX);
+    segments.retain(|s| s.1 < cells && s.2 < cells && s.1 != s.2);
     segments.sort_unstable_by(segment_order);
-    let mut uf = UnionFind::new(n);
+    let mut uf = UnionFind::new(cells);
     let mut kept: Vec<(usize, usize)> = segments
         .into_iter()
         .filter(|s| uf.union(s.1, s.2))
-        .map(|s| (s.1.min(s.2), s.1.max(s.2)))
+        .map(|s| (s.1.min(s.2) as usize, s.1.max(s.2) as usize))
         .collect();
     kept.sort_unstable();
     kept
@@ -435,30 +452,43 @@ pub fn break_polygons(n: usize, mut segments: Vec<(f64, usize, usize)>) -> Vec<(
 /// vector per cell: a world's base has millions of cells.
 struct Adjacency {
     offsets: Vec<usize>,
-    neighbours: Vec<usize>,
-    edge_of: Vec<usize>,
+    neighbours: Vec<u32>,
+    edge_of: Vec<u32>,
 }
 
 impl Adjacency {
+    /// The adjacency of `edges` on `n` cells: empty (no cell has a neighbour) on a grid of more
+    /// than [`MAX_SEGMENT_CELLS`] cells or with more than `u32::MAX` edges, which have no
+    /// segments to begin with.
     fn new(n: usize, edges: &[(usize, usize)]) -> Adjacency {
         let mut offsets = vec![0usize; n + 1];
+        if n > MAX_SEGMENT_CELLS || edges.len() > u32::MAX as usize {
+            return Adjacency {
+                offsets,
+                neighbours: Vec::new(),
+                edge_of: Vec::new(),
+            };
+        }
+        // Each cell's count, then the end of its slots; placing an entry moves the end back,
+        // so that it ends at the cell's first slot.
         for &(a, b) in edges {
-            offsets[a + 1] += 1;
-            offsets[b + 1] += 1;
+            offsets[a] += 1;
+            offsets[b] += 1;
         }
-        for i in 0..n {
-            offsets[i + 1] += offsets[i];
+        let mut total = 0;
+        for o in &mut offsets[..n] {
+            total += *o;
+            *o = total;
         }
-        let mut neighbours = vec![0usize; offsets[n]];
-        let mut edge_of = vec![0usize; offsets[n]];
-        {
-            let mut next = offsets.clone();
-            for (k, &(a, b)) in edges.iter().enumerate() {
-                for (from, to) in [(a, b), (b, a)] {
-                    neighbours[next[from]] = to;
-                    edge_of[next[from]] = k;
-                    next[from] += 1;
-                }
+        offsets[n] = total;
+        let mut neighbours = vec![0u32; total];
+        let mut edge_of = vec![0u32; total];
+        // Cells are below n ≤ u32::MAX and edges below u32::MAX: the conversions are exact.
+        for (k, &(a, b)) in edges.iter().enumerate() {
+            for (from, to) in [(a, b), (b, a)] {
+                offsets[from] -= 1;
+                neighbours[offsets[from]] = to as u32;
+                edge_of[offsets[from]] = k as u32;
             }
         }
         // Each cell's entries (at most 8 on a grid of 8-adjacent cells) sorted by (neighbour,
@@ -488,7 +518,7 @@ impl Adjacency {
     }
 
     /// Cell `i`'s neighbours, sorted.
-    fn of(&self, i: usize) -> &[usize] {
+    fn of(&self, i: usize) -> &[u32] {
         &self.neighbours[self.slots(i)]
     }
 }
@@ -497,17 +527,17 @@ impl Adjacency {
 /// cells from an end point up to, not including, the first branch point) and every tree with
 /// fewer than `min_branch` cells, until a pass removes nothing. Each pass decides from the
 /// forest as it was at the start of the pass, so the result does not depend on visiting order.
-/// Returns the edges left, sorted and without repeats.
+/// Returns the edges left, sorted and without repeats. Takes the edges by value and sorts them
+/// in place: a world's base has millions.
 ///
 /// One adjacency for all passes, with a flag per edge for the ones removed;
 /// [`naive::reduce_branches`](super::ppa_naive::reduce_branches) rebuilds the forest at every
 /// pass instead, and property tests compare the two.
 pub fn reduce_branches(
     n: usize,
-    edges: &[(usize, usize)],
+    mut edges: Vec<(usize, usize)>,
     min_branch: usize,
 ) -> Vec<(usize, usize)> {
-    let mut edges = edges.to_vec();
     edges.sort_unstable();
     edges.dedup();
     if min_branch == 0 {
@@ -522,8 +552,8 @@ pub fn reduce_branches(
     let first_two = |alive: &[bool], i: usize| {
         let mut it = adj
             .slots(i)
-            .filter(|&s| alive[adj.edge_of[s]])
-            .map(|s| (adj.neighbours[s], adj.edge_of[s]));
+            .map(|s| (adj.neighbours[s] as usize, adj.edge_of[s] as usize))
+            .filter(|&(_, e)| alive[e]);
         (it.next(), it.next())
     };
     loop {
@@ -601,9 +631,10 @@ pub fn paths(n: usize, edges: &[(usize, usize)], z: &[f32]) -> Vec<FeaturePath> 
         for &first in adj.of(start) {
             let mut cells = vec![start];
             let mut prev = start;
-            let mut cur = first;
+            let mut cur = first as usize;
             while let &[a, b] = adj.of(cur) {
                 cells.push(cur);
+                let (a, b) = (a as usize, b as usize);
                 let next = if a == prev { b } else { a };
                 prev = cur;
                 cur = next;
@@ -647,8 +678,7 @@ pub fn feature_tree(z: &Array2<f32>, kind: FeatureKind, params: &PpaParams) -> F
         let cand = candidates(&o, rows, cols, params);
         break_polygons(n, segments(&o, rows, cols, &cand))
     };
-    let edges = reduce_branches(n, &forest, params.min_branch);
-    drop(forest);
+    let edges = reduce_branches(n, forest, params.min_branch);
     let plain = values(z);
     let paths = paths(n, &edges, &plain);
     FeatureTree {
@@ -660,12 +690,14 @@ pub fn feature_tree(z: &Array2<f32>, kind: FeatureKind, params: &PpaParams) -> F
     }
 }
 
-/// Ridges and valleys of `z`.
+/// Ridges and valleys of `z`, the two trees computed side by side (rayon's pool; each tree is
+/// what [`feature_tree`] alone gives).
 pub fn features(z: &Array2<f32>, params: &PpaParams) -> Features {
-    Features {
-        ridges: feature_tree(z, FeatureKind::Ridge, params),
-        valleys: feature_tree(z, FeatureKind::Valley, params),
-    }
+    let (ridges, valleys) = rayon::join(
+        || feature_tree(z, FeatureKind::Ridge, params),
+        || feature_tree(z, FeatureKind::Valley, params),
+    );
+    Features { ridges, valleys }
 }
 
 /// How well extracted features agree with D8 drainage (see [`drainage_agreement`]).
@@ -798,9 +830,9 @@ pub fn drainage_agreement(
         // Local direction: from the first to the last neighbour (or to the one neighbour).
         let (r, c) = ((i / cols) as isize, (i % cols) as isize);
         let pos = |j: usize| ((j / cols) as isize, (j % cols) as isize);
-        let (ar, ac) = pos(neighbours[0]);
+        let (ar, ac) = pos(neighbours[0] as usize);
         let (br, bc) = match neighbours {
-            [_, .., last] => pos(*last),
+            [_, .., last] => pos(*last as usize),
             _ => (r, c),
         };
         let (tr, tc) = (ar - br, ac - bc);

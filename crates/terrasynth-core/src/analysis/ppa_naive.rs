@@ -7,7 +7,9 @@
 
 use std::collections::BTreeSet;
 
-use super::ppa::{segment_order, sorted_paths, FeaturePath, PpaParams, PROFILE_DIRECTIONS};
+use super::ppa::{
+    segment_order, sorted_paths, FeaturePath, PpaParams, Segment, PROFILE_DIRECTIONS,
+};
 
 /// Profile recognition cell by cell: for each cell and direction, the minimum of each side's
 /// `window` cells (NaN never lower) is compared with the cell.
@@ -92,14 +94,16 @@ fn find_cycle(n: usize, edges: &[(usize, usize)]) -> Option<Vec<usize>> {
 
 /// Polygon breaking one polygon at a time: while the graph has a closed polygon, its lowest
 /// segment (the last under [`segment_order`]) is removed. Returns the sorted `(a, b)` pairs left.
-pub fn break_polygons(n: usize, segments: &[(f64, usize, usize)]) -> Vec<(usize, usize)> {
-    let mut segs: Vec<(f64, usize, usize)> = segments
+pub fn break_polygons(n: usize, segments: &[Segment]) -> Vec<(usize, usize)> {
+    let inside = |c: u32| (c as usize) < n;
+    let mut segs: Vec<Segment> = segments
         .iter()
-        .filter(|s| s.1 < n && s.2 < n && s.1 != s.2)
+        .filter(|s| inside(s.1) && inside(s.2) && s.1 != s.2)
         .map(|s| (s.0, s.1.min(s.2), s.1.max(s.2)))
         .collect();
+    let pair = |s: &Segment| (s.1 as usize, s.2 as usize);
     loop {
-        let edges: Vec<(usize, usize)> = segs.iter().map(|s| (s.1, s.2)).collect();
+        let edges: Vec<(usize, usize)> = segs.iter().map(pair).collect();
         let Some(cycle) = find_cycle(n, &edges) else {
             break;
         };
@@ -115,7 +119,7 @@ pub fn break_polygons(n: usize, segments: &[(f64, usize, usize)]) -> Vec<(usize,
             None => break,
         }
     }
-    let mut out: Vec<(usize, usize)> = segs.iter().map(|s| (s.1, s.2)).collect();
+    let mut out: Vec<(usize, usize)> = segs.iter().map(pair).collect();
     out.sort_unstable();
     out
 }

@@ -88,7 +88,7 @@ proptest! {
         let o = ppa::oriented(&z, FeatureKind::Valley);
         let cand = ppa::candidates(&o, rows, cols, &p);
         let forest = ppa::break_polygons(n, ppa::segments(&o, rows, cols, &cand));
-        let reduced = ppa::reduce_branches(n, &forest, min_branch);
+        let reduced = ppa::reduce_branches(n, forest.clone(), min_branch);
         prop_assert_eq!(&reduced, &ppa_naive::reduce_branches(n, &forest, min_branch));
         let plain: Vec<f32> = z.iter().copied().collect();
         for edges in [&forest, &reduced] {

@@ -150,7 +150,7 @@ pub fn sketch_trees(sketch: &Sketch, spacing: usize) -> SketchTrees {
         let weight: Vec<f32> = drawn.d.iter().map(|&v| (-v) as f32).collect();
         let segs = crate::analysis::ppa::segments(&weight, rows, cols, &mask);
         let forest = break_polygons(n, segs);
-        let edges = reduce_branches(n, &forest, 3);
+        let edges = reduce_branches(n, forest, 3);
         let tree_paths = paths(n, &edges, &weight);
         descent.resize(path_base as usize + tree_paths.len(), 0.0);
         let mut adj = vec![Vec::new(); n];
