@@ -29,10 +29,7 @@ if [[ "${1:-}" == "--bin" ]]; then BIN=$2; shift 2; fi
 [[ -x "$BIN" ]] || { echo "export_test: no binary at $BIN (run cargo build)" >&2; exit 1; }
 
 VENV=target/export-venv
-if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c "import importlib.metadata as m, sys; sys.exit(m.version('pmtiles') != '$PMTILES_VERSION')" 2>/dev/null; then
-    python3 -m venv "$VENV"
-    "$VENV/bin/pip" install --quiet --disable-pip-version-check "pmtiles==$PMTILES_VERSION"
-fi
+pinned_venv "$VENV" pmtiles "$PMTILES_VERSION"
 
 OUT=target/export-test
 rm -rf "$OUT"

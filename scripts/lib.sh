@@ -57,3 +57,14 @@ stop_process() {
     fi
     wait "$pid" 2>/dev/null || true
 }
+
+# pinned_venv DIR PACKAGE VERSION: a Python virtualenv at DIR with PACKAGE==VERSION installed by
+# pip (nothing global), made again only when the installed version differs.
+pinned_venv() {
+    local venv=$1 package=$2 version=$3
+    if [[ ! -x "$venv/bin/python" ]] || ! "$venv/bin/python" -c \
+        "import importlib.metadata as m, sys; sys.exit(m.version('$package') != '$version')" 2>/dev/null; then
+        python3 -m venv "$venv"
+        "$venv/bin/pip" install --quiet --disable-pip-version-check "$package==$version"
+    fi
+}

@@ -19,10 +19,7 @@ while [[ "${1:-}" == "--release" || "${1:-}" == "--no-build" ]]; do
 done
 
 VENV=target/schemathesis-venv
-if [[ ! -x "$VENV/bin/schemathesis" ]] || ! "$VENV/bin/schemathesis" --version | grep -q "$SCHEMATHESIS_VERSION"; then
-    python3 -m venv "$VENV"
-    "$VENV/bin/pip" install --quiet --disable-pip-version-check "schemathesis==$SCHEMATHESIS_VERSION"
-fi
+pinned_venv "$VENV" schemathesis "$SCHEMATHESIS_VERSION"
 
 if ((BUILD)); then
     if [[ "$PROFILE" == release ]]; then cargo build --release --quiet; else cargo build --quiet; fi

@@ -1,5 +1,6 @@
 //! Metadata handlers: `/worlds`, `/worlds/{world}`, TileJSON per layer, the MapLibre style of a
-//! world (`/styles/{world}.json`), `/healthz`, `/metrics`. The documents themselves come from the
+//! world (`/styles/{world}.json`), its WMTS capabilities (`/worlds/{world}/WMTSCapabilities.xml`),
+//! `/healthz`, `/metrics`. The documents themselves come from the
 //! tiles crate ([`terrasynth_tiles::style`]); this module only adds the base URL of their
 //! absolute URLs: the configured `public_url`, or else the `Host` (and `X-Forwarded-Proto`) the
 //! request came with — then the answer says `Vary: Host, X-Forwarded-Proto`, so that caches keep
@@ -13,9 +14,10 @@ use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
 use terrasynth_tiles::style::{style_json, tilejson_in, LAYERS};
+use terrasynth_tiles::wmts::capabilities_xml;
 use terrasynth_tiles::{TileJson, World};
 
-use super::conditional::revalidated_json;
+use super::conditional::{bytes_etag, revalidated, revalidated_json};
 use super::error::{Problem, ServerError};
 use super::state::AppState;
 use crate::config::ServerConfig;
@@ -221,6 +223,39 @@ pub async fn tilejson(
         .and_then(|layer| tilejson_in(&w, &base, layer, format))
         .map(|t: TileJson| revalidated_json(&headers, &t, vary))
         .ok_or_else(|| ServerError::NotFound(format!("no TileJSON `{file}`")))
+}
+
+/// The OGC WMTS 1.0.0 capabilities of a world: its raster layers as PNG tile templates on the
+/// `WebMercatorQuad` tile matrix set ([`terrasynth_tiles::wmts`]).
+#[utoipa::path(
+    get,
+    path = "/worlds/{world}/WMTSCapabilities.xml",
+    tag = "tiles",
+    params(
+        ("world" = String, Path, description = "World name"),
+        ("If-None-Match" = Option<String>, Header, description = "ETag of a cached copy")
+    ),
+    responses(
+        (status = 200, description = "WMTS 1.0.0 capabilities (RESTful): every raster layer as a PNG `ResourceURL` template on `WebMercatorQuad` with the world's tile limits per zoom; a weak `ETag` of the bytes, `Cache-Control: no-cache`", body = String, content_type = "application/xml"),
+        (status = 304, description = "Not modified (`If-None-Match` names the weak ETag of the document's bytes)"),
+        (status = 404, description = "Unknown world", body = Problem, content_type = "application/problem+json")
+    )
+)]
+pub async fn wmts_capabilities(
+    State(state): State<AppState>,
+    Path(name): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, ServerError> {
+    let w = state.find_world(&name).await?;
+    let (base, vary) = base_url(&state.config, &headers);
+    let xml = capabilities_xml(&w, &base);
+    Ok(revalidated(
+        &headers,
+        &bytes_etag(xml.as_bytes()),
+        xml.into(),
+        HeaderValue::from_static("application/xml"),
+        vary,
+    ))
 }
 
 /// MapLibre style (version 8) of a world: its raster-dem as terrain and hillshade, the colour

@@ -155,6 +155,7 @@ pub fn api_routes(admin: bool) -> OpenApiRouter<AppState> {
         .routes(routes!(points::elevation_at, points::elevation_profile))
         .routes(routes!(meta::tilejson))
         .routes(routes!(meta::style))
+        .routes(routes!(meta::wmts_capabilities))
         .layer(CompressionLayer::new());
     let web = OpenApiRouter::new()
         .routes(routes!(web::index))

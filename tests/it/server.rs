@@ -382,6 +382,7 @@ async fn documents_carry_a_weak_etag_of_their_bytes_and_revalidate_with_304() {
         "/tiles/mini/elevation.json",
         "/tiles/mini/color.json?tile_format=webp",
         "/styles/mini.json",
+        "/worlds/mini/WMTSCapabilities.xml",
         "/openapi.json",
         "/",
         "/minimal.html",
@@ -439,6 +440,116 @@ async fn documents_carry_a_weak_etag_of_their_bytes_and_revalidate_with_304() {
     assert_ne!(h[header::ETAG], h2[header::ETAG]);
     assert_eq!(h2[header::ETAG].to_str().unwrap(), weak_tag_of(&body2));
     assert!(h2[header::VARY].to_str().unwrap().contains("Host"));
+}
+
+/// The text of every `<tag>` element in `xml`, in order (the capabilities are written by us with
+/// one element per line; no XML reader is needed to read them back).
+fn element_texts<'a>(xml: &'a str, tag: &str) -> Vec<&'a str> {
+    let (open, close) = (format!("<{tag}>"), format!("</{tag}>"));
+    xml.split(open.as_str())
+        .skip(1)
+        .filter_map(|rest| rest.split_once(close.as_str()).map(|(text, _)| text))
+        .collect()
+}
+
+#[tokio::test]
+async fn wmts_capabilities_declare_exactly_the_tiles_served() {
+    let app = router(&ServerConfig::default());
+    let (st, h, body) = send(&app, get("/worlds/mini/WMTSCapabilities.xml")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "application/xml");
+    let xml = String::from_utf8(body).unwrap();
+    assert!(xml.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Capabilities "));
+    // Every layer the world lists, each with a PNG template on the XYZ route.
+    let (_, world) = crate::support::send_json(&app, get("/worlds/mini")).await;
+    let layers: Vec<&str> = world["layers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l.as_str().unwrap())
+        .collect();
+    let ids: Vec<&str> = element_texts(&xml, "ows:Identifier")
+        .into_iter()
+        .filter(|id| layers.contains(id))
+        .collect();
+    assert_eq!(ids, layers);
+    for layer in &layers {
+        let template =
+            format!("/tiles/mini/{layer}/{{TileMatrix}}/{{TileCol}}/{{TileRow}}.png\"/>");
+        let line = xml
+            .lines()
+            .find(|l| l.contains(&template))
+            .unwrap_or_else(|| panic!("no {template}"));
+        assert!(
+            line.trim_start().starts_with(
+                "<ResourceURL format=\"image/png\" resourceType=\"tile\" template=\"http://"
+            ),
+            "{line}"
+        );
+    }
+    // The first layer's limits: the corners are served, one tile beyond each side is not.
+    let world_struct = small_world();
+    let first_layer = xml.split("</Layer>").next().unwrap();
+    let zooms = element_texts(first_layer, "TileMatrix");
+    assert_eq!(zooms.len(), 12, "zooms 0..=11 of the mini world");
+    let num = |tag: &str| -> Vec<u32> {
+        element_texts(first_layer, tag)
+            .iter()
+            .map(|v| v.parse().unwrap())
+            .collect()
+    };
+    let (r0, r1, c0, c1) = (
+        num("MinTileRow"),
+        num("MaxTileRow"),
+        num("MinTileCol"),
+        num("MaxTileCol"),
+    );
+    for (k, z) in zooms.iter().enumerate() {
+        let z: u8 = z.parse().unwrap();
+        let n = 1u32 << z;
+        for (x, y) in [
+            (c0[k], r0[k]),
+            (c1[k], r0[k]),
+            (c0[k], r1[k]),
+            (c1[k], r1[k]),
+        ] {
+            assert!(world_struct.check_tile(z, x, y).is_ok(), "{z}/{x}/{y}");
+        }
+        let beyond = [
+            (c0[k].checked_sub(1), Some(r0[k])),
+            (Some(c1[k] + 1), Some(r0[k])),
+            (Some(c0[k]), r0[k].checked_sub(1)),
+            (Some(c0[k]), Some(r1[k] + 1)),
+        ];
+        for (x, y) in beyond {
+            if let (Some(x), Some(y)) = (x, y) {
+                if x < n && y < n {
+                    assert!(world_struct.check_tile(z, x, y).is_err(), "{z}/{x}/{y}");
+                }
+            }
+        }
+    }
+    // The tile matrices: 2^z tiles a side at a scale halving with each zoom, computed here.
+    let widths: Vec<u64> = element_texts(&xml, "MatrixWidth")
+        .iter()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(widths, (0..=11).map(|z| 1u64 << z).collect::<Vec<_>>());
+    let scales: Vec<f64> = element_texts(&xml, "ScaleDenominator")
+        .iter()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let z0 = 2.0 * std::f64::consts::PI * 6_378_137.0 / 256.0 / 0.000_28;
+    for (z, s) in scales.iter().enumerate() {
+        let want = z0 / f64::from(1u32 << z);
+        assert!(
+            (s - want).abs() <= 1e-9 * want,
+            "zoom {z}: {s} against {want}"
+        );
+    }
+    // Unknown worlds are 404.
+    let (st, _, _) = send(&app, get("/worlds/nowhere/WMTSCapabilities.xml")).await;
+    assert_eq!(st, StatusCode::NOT_FOUND);
 }
 
 // --- invariants of the pyramid: seamless and zoom-consistent ---

@@ -43,6 +43,7 @@ pub mod terrain;
 pub mod tilejson;
 pub mod vegetation;
 pub mod water;
+pub mod wmts;
 pub mod world;
 
 pub use base_layers::{LayerStore, Obtained};
